@@ -1,0 +1,69 @@
+"""openup-ompl: reach-to-grasp planning under object-pose uncertainty, on OMPL.
+
+The hand opens with the pose uncertainty ``u`` and with the palm's normalised distance to
+the grasp (Huaman Quispe and Stilman, "Open Up!"); the arm is planned with OMPL, every
+state checked with the hand the law gives, collisions by Coal through Pinocchio.
+"""
+
+from openup_ompl.exceptions import (
+    ConfigError,
+    FrameNotFound,
+    InvalidProblem,
+    JointNotFound,
+    OpenUpError,
+    PlanningFailed,
+    RobotNotFound,
+    UnreachableGrasp,
+)
+from openup_ompl.goal import GraspGoal, IKGoalRegion
+from openup_ompl.hand_law import GoalDistance, HandLaw, open_hand
+from openup_ompl.ik import IKOptions, IKSolver
+from openup_ompl.plan import Plan, read_plan
+from openup_ompl.planners import IKBiRRT, IKBiRRTOptions
+from openup_ompl.planning import PLANNERS, GraspPlanningSetup
+from openup_ompl.robot import Robot, available_robots, load_robot
+from openup_ompl.scene import Problem, Shape, default_scene_path, load_scene
+from openup_ompl.validity import (
+    DEFAULT_RESOLUTION,
+    CoupledChecker,
+    CoupledMotionValidator,
+    CoupledValidityChecker,
+)
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "DEFAULT_RESOLUTION",
+    "PLANNERS",
+    "ConfigError",
+    "CoupledChecker",
+    "CoupledMotionValidator",
+    "CoupledValidityChecker",
+    "FrameNotFound",
+    "GoalDistance",
+    "GraspGoal",
+    "GraspPlanningSetup",
+    "HandLaw",
+    "IKBiRRT",
+    "IKBiRRTOptions",
+    "IKGoalRegion",
+    "IKOptions",
+    "IKSolver",
+    "InvalidProblem",
+    "JointNotFound",
+    "OpenUpError",
+    "Plan",
+    "PlanningFailed",
+    "Problem",
+    "Robot",
+    "RobotNotFound",
+    "Shape",
+    "UnreachableGrasp",
+    "__version__",
+    "available_robots",
+    "default_scene_path",
+    "load_robot",
+    "load_scene",
+    "open_hand",
+    "read_plan",
+]

@@ -1,0 +1,83 @@
+"""Typed readers for values in TOML tables: each bad value raises :class:`ConfigError`."""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from openup_ompl.exceptions import ConfigError
+
+
+def read_toml(path: Path, what: str) -> dict[str, Any]:
+    """Parse a TOML file, turning syntax and I/O errors into :class:`ConfigError`."""
+    try:
+        with open(path, "rb") as stream:
+            return tomllib.load(stream)
+    except FileNotFoundError:
+        raise ConfigError(what, str(path), "an existing TOML file") from None
+    except (OSError, tomllib.TOMLDecodeError) as error:
+        raise ConfigError(what, str(path), f"a readable TOML file ({error})") from None
+
+
+def require(table: Mapping[str, Any], key: str, where: str) -> Any:
+    """The value at ``key``, or a :class:`ConfigError` saying it is missing."""
+    if key not in table:
+        raise ConfigError(f"{where}.{key}", None, "a value (the key is missing)")
+    return table[key]
+
+
+def string(value: Any, where: str) -> str:
+    if not isinstance(value, str) or not value:
+        raise ConfigError(where, value, "a non-empty string")
+    return value
+
+
+def number(value: Any, where: str, *, low: float | None = None, high: float | None = None) -> float:
+    """A finite float, optionally within ``[low, high]``."""
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+    if ok:
+        value = float(value)
+        ok = math.isfinite(value) and (low is None or value >= low) and (high is None or value <= high)
+    if not ok:
+        span = f" in [{low}, {high}]" if low is not None or high is not None else ""
+        raise ConfigError(where, value, f"a finite number{span}")
+    return float(value)
+
+
+def vector(value: Any, where: str, length: int | None = None) -> np.ndarray:
+    """A list of finite numbers, optionally of a given length."""
+    ok = isinstance(value, list) and all(
+        isinstance(x, (int, float)) and not isinstance(x, bool) for x in value
+    )
+    if ok:
+        array = np.array(value, dtype=float)
+        ok = bool(np.all(np.isfinite(array))) and (length is None or array.size == length)
+    if not ok:
+        size = f"{length} " if length is not None else ""
+        raise ConfigError(where, value, f"a list of {size}finite numbers")
+    return array
+
+
+def string_list(value: Any, where: str) -> list[str]:
+    if not (isinstance(value, list) and value and all(isinstance(x, str) and x for x in value)):
+        raise ConfigError(where, value, "a non-empty list of names")
+    if len(set(value)) != len(value):
+        raise ConfigError(where, value, "a list of distinct names")
+    return list(value)
+
+
+def pose(value: Any, where: str) -> np.ndarray:
+    """A pose ``[x, y, z, qx, qy, qz, qw]`` with a unit quaternion (tolerance 1e-3)."""
+    array = vector(value, where, 7)
+    norm = float(np.linalg.norm(array[3:]))
+    if abs(norm - 1.0) > 1e-3:
+        raise ConfigError(
+            where, value, f"[x, y, z, qx, qy, qz, qw] with a unit quaternion (norm is {norm:.6g})"
+        )
+    array[3:] /= norm
+    return array

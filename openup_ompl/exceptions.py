@@ -1,0 +1,118 @@
+"""Exception hierarchy: every error this package raises derives from :class:`OpenUpError`.
+
+Each class carries the data needed to debug it (the bad value, what was expected), so a
+caller can react programmatically and the command line can print one clear line.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+
+class OpenUpError(Exception):
+    """Base class of every error raised by openup-ompl."""
+
+
+class ConfigError(OpenUpError, ValueError):
+    """A robot file, scene file or option holds a value that is not what was expected.
+
+    Attributes:
+        where: File and key (or option name) holding the bad value.
+        value: The bad value as read.
+        expected: What would have been accepted.
+    """
+
+    def __init__(self, where: str, value: object, expected: str) -> None:
+        self.where = where
+        self.value = value
+        self.expected = expected
+        super().__init__(f"{where}: got {value!r}, expected {expected}")
+
+
+class RobotNotFound(OpenUpError, LookupError):
+    """No robot definition of that name or path exists.
+
+    Attributes:
+        name: The requested robot.
+        available: The robot names that do exist.
+    """
+
+    def __init__(self, name: str, available: Sequence[str]) -> None:
+        self.name = name
+        self.available = list(available)
+        super().__init__(
+            f"unknown robot {name!r}: expected one of {self.available} or a path to a robot TOML"
+        )
+
+
+class JointNotFound(OpenUpError, LookupError):
+    """A joint named in a robot definition does not exist in its URDF.
+
+    Attributes:
+        name: The joint asked for.
+        joints: The joints the model has.
+    """
+
+    def __init__(self, name: str, joints: Sequence[str]) -> None:
+        self.name = name
+        self.joints = list(joints)
+        super().__init__(f"unknown joint {name!r}: the URDF has {self.joints}")
+
+
+class FrameNotFound(OpenUpError, LookupError):
+    """A frame named in a robot definition does not exist in its URDF.
+
+    Attributes:
+        name: The frame asked for.
+        frames: The frames the model has.
+    """
+
+    def __init__(self, name: str, frames: Sequence[str]) -> None:
+        self.name = name
+        self.frames = list(frames)
+        super().__init__(f"unknown frame {name!r}: the URDF has {self.frames}")
+
+
+class InvalidProblem(OpenUpError):
+    """The planning problem cannot have a valid solution as posed.
+
+    Raised before planning for a start in collision or outside the joint limits, a grasp
+    pose out of reach or reachable only in collision, or a start already at the grasp.
+    """
+
+
+class UnreachableGrasp(InvalidProblem):
+    """No collision-free inverse-kinematics solution of the grasp pose was found.
+
+    Attributes:
+        pose: The grasp pose ``[x, y, z, qx, qy, qz, qw]`` in the world frame.
+        attempts: IK restarts tried.
+        in_collision: How many of the IK solutions found were rejected for collision.
+    """
+
+    def __init__(self, pose: Sequence[float], attempts: int, in_collision: int) -> None:
+        self.pose = list(pose)
+        self.attempts = attempts
+        self.in_collision = in_collision
+        if in_collision:
+            why = f"reachable only in collision ({in_collision} IK solutions, all colliding)"
+        else:
+            why = "out of reach (no IK solution)"
+        super().__init__(f"grasp pose {self.pose} is {why} after {attempts} IK restarts")
+
+
+class PlanningFailed(OpenUpError):
+    """The planner ended without an exact solution.
+
+    Attributes:
+        status: OMPL's planner status, as text (e.g. ``"Timeout"``).
+        planner: The planner's name.
+    """
+
+    def __init__(self, status: str, planner: str, time_limit: float) -> None:
+        self.status = status
+        self.planner = planner
+        self.time_limit = time_limit
+        super().__init__(
+            f"{planner} found no exact solution within {time_limit} s (OMPL status: {status})"
+        )

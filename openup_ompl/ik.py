@@ -1,0 +1,118 @@
+"""Inverse kinematics of the palm frame: damped least squares on Pinocchio.
+
+The error is ``log6(oMpalm^-1 * oMgoal)`` (palm frame), the step the damped
+least-squares solution through the frame Jacobian composed with ``Jlog6``, as in
+Pinocchio's own IK example, restricted to the arm joints and clipped to their limits.
+Random restarts (uniform inside the joint limits) escape local minima.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from openup_ompl.exceptions import ConfigError
+from openup_ompl.robot import Robot
+
+
+@dataclass(frozen=True)
+class IKOptions:
+    """Damped least-squares IK settings.
+
+    Attributes:
+        max_iterations: Iterations per restart.
+        position_tolerance: Convergence threshold on the palm position error [m].
+        rotation_tolerance: Convergence threshold on the palm rotation error [rad].
+        damping: Damping ``lambda`` of ``J J^T + lambda I`` [unitless].
+        step: Fraction of the least-squares step taken per iteration.
+        max_restarts: Random restarts tried by :meth:`IKSolver.solve` before giving up.
+    """
+
+    max_iterations: int = 150
+    position_tolerance: float = 1e-5  # [m]
+    rotation_tolerance: float = 1e-4  # [rad]
+    damping: float = 1e-6
+    step: float = 1.0
+    max_restarts: int = 20
+
+    def __post_init__(self) -> None:
+        for name in ("max_iterations", "max_restarts"):
+            value = getattr(self, name)
+            if not (isinstance(value, int) and value >= 1):
+                raise ConfigError(f"IKOptions.{name}", value, "an integer >= 1")
+        for name in ("position_tolerance", "rotation_tolerance", "damping", "step"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ConfigError(f"IKOptions.{name}", value, "a positive number")
+
+
+class IKSolver:
+    """Palm-frame IK for one robot and one target pose.
+
+    Args:
+        robot: The robot.
+        target: Palm frame target in the world frame.
+        options: Solver settings.
+
+    Attributes:
+        calls: Single-restart solves run so far.
+    """
+
+    def __init__(self, robot: Robot, target: pin.SE3, options: IKOptions | None = None) -> None:
+        self.robot = robot
+        self.target = target
+        self.options = options or IKOptions()
+        self._model = robot.model
+        self._data = robot.model.createData()
+        self._frame = robot.palm_frame_id
+        self._lower = robot.arm_lower
+        self._upper = robot.arm_upper
+        self._q = robot.neutral()
+        self._damping_eye = self.options.damping * np.eye(6)
+        self.calls = 0
+
+    def error(self, arm: np.ndarray) -> tuple[float, float]:
+        """Palm position error [m] and rotation error [rad] at an arm configuration."""
+        self._q[self.robot.arm_idx] = arm
+        placement = self.robot.palm_placement(self._data, self._q)
+        err = pin.log6(placement.actInv(self.target)).vector
+        return float(np.linalg.norm(err[:3])), float(np.linalg.norm(err[3:]))
+
+    def refine(self, arm: np.ndarray) -> np.ndarray | None:
+        """Run damped least squares from ``arm``; the solution, or ``None`` if it stalls."""
+        options = self.options
+        model, data, q = self._model, self._data, self._q
+        arm_idx, v_idx = self.robot.arm_idx, self.robot.arm_v_idx
+        x = np.clip(np.asarray(arm, dtype=float), self._lower, self._upper)
+        self.calls += 1
+        for _ in range(options.max_iterations):
+            q[arm_idx] = x
+            pin.forwardKinematics(model, data, q)
+            placement = pin.updateFramePlacement(model, data, self._frame)
+            error_placement = placement.actInv(self.target)
+            err = pin.log6(error_placement).vector
+            if (
+                err[0] ** 2 + err[1] ** 2 + err[2] ** 2 < options.position_tolerance**2
+                and err[3] ** 2 + err[4] ** 2 + err[5] ** 2 < options.rotation_tolerance**2
+            ):
+                return x
+            jacobian = pin.computeFrameJacobian(model, data, q, self._frame, pin.LOCAL)[:, v_idx]
+            jacobian = -pin.Jlog6(error_placement.inverse()) @ jacobian
+            step = -jacobian.T @ np.linalg.solve(jacobian @ jacobian.T + self._damping_eye, err)
+            x = np.clip(x + options.step * step, self._lower, self._upper)
+        return None
+
+    def solve(self, rng: np.random.Generator, seed_arm: np.ndarray | None = None) -> np.ndarray | None:
+        """Up to ``max_restarts`` refinements (the first from ``seed_arm`` if given)."""
+        for attempt in range(self.options.max_restarts):
+            if attempt == 0 and seed_arm is not None:
+                start = seed_arm
+            else:
+                start = rng.uniform(self._lower, self._upper)
+            solution = self.refine(start)
+            if solution is not None:
+                return solution
+        return None

@@ -1,0 +1,227 @@
+"""IKBiRRT: a bidirectional RRT whose goal tree is rooted at IK solutions of the grasp.
+
+A start tree grows from the start state(s) and a goal tree from inverse-kinematics
+solutions of the grasp pose, new goal roots being sampled during planning with
+probability ``p_sample_goal`` (Berenson et al., "Manipulation planning on constraint
+manifolds", 2009). Both trees grow with the paper's Algorithm 2 (``Extend``): from the
+nearest vertex, step toward the target, add each collision-free step as a vertex, stop at
+the first collision. Every step is checked with the hand set by the law at the checker's
+resolution. The trees swap roles after every iteration.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from enum import Enum
+
+import numpy as np
+from ompl import base as ob
+from ompl import geometric as og
+
+from openup_ompl.exceptions import ConfigError
+from openup_ompl.goal import IKGoalRegion
+
+
+@dataclass(frozen=True)
+class IKBiRRTOptions:
+    """IKBiRRT settings.
+
+    Attributes:
+        max_step: Length of one ``Step`` of Algorithm 2 [rad, Euclidean norm over the arm
+            joints]; each step is collision-checked at the checker's finer resolution.
+        p_sample_goal: Probability per iteration of sampling a new IK root for the goal
+            tree instead of growing the trees.
+        goal_restarts: IK restarts per goal-sampling iteration.
+        seed: Seed of the planner's random generator (``None``: fresh entropy).
+    """
+
+    max_step: float = 0.3  # [rad]
+    p_sample_goal: float = 0.1
+    goal_restarts: int = 1
+    seed: int | None = None
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.max_step) and self.max_step > 0):
+            raise ConfigError("IKBiRRTOptions.max_step", self.max_step, "a positive step [rad]")
+        if not (0.0 <= self.p_sample_goal <= 1.0):
+            raise ConfigError("IKBiRRTOptions.p_sample_goal", self.p_sample_goal, "a probability in [0, 1]")
+        if not (isinstance(self.goal_restarts, int) and self.goal_restarts >= 1):
+            raise ConfigError("IKBiRRTOptions.goal_restarts", self.goal_restarts, "an integer >= 1")
+
+
+class _Extend(Enum):
+    REACHED = "reached"
+    ADVANCED = "advanced"
+    TRAPPED = "trapped"
+
+
+class _Tree:
+    """Vertices in one array (numpy nearest neighbour), each with its parent index."""
+
+    def __init__(self, dof: int, capacity: int = 1024) -> None:
+        self.nodes = np.empty((capacity, dof))
+        self.parents = np.empty(capacity, dtype=np.intp)
+        self.size = 0
+
+    def add(self, q: np.ndarray, parent: int) -> int:
+        if self.size == self.nodes.shape[0]:
+            self.nodes = np.concatenate([self.nodes, np.empty_like(self.nodes)])
+            self.parents = np.concatenate([self.parents, np.empty_like(self.parents)])
+        self.nodes[self.size] = q
+        self.parents[self.size] = parent
+        self.size += 1
+        return self.size - 1
+
+    def nearest(self, q: np.ndarray) -> int:
+        diff = self.nodes[: self.size] - q
+        return int(np.argmin(np.einsum("ij,ij->i", diff, diff)))
+
+    def branch(self, index: int) -> list[np.ndarray]:
+        """Vertices from the root to ``index``."""
+        out = []
+        while index >= 0:
+            out.append(self.nodes[index].copy())
+            index = int(self.parents[index])
+        return out[::-1]
+
+
+class IKBiRRT(ob.Planner):
+    """Bidirectional RRT with IK-sampled goal roots (an ``ob.Planner``).
+
+    The problem's goal must be an :class:`~openup_ompl.goal.IKGoalRegion`: the planner
+    draws IK roots from it and uses its coupled checker for every state and motion (the
+    same checks as the space information's validity checker and motion validator, without
+    the OMPL round trip). Repeatable: the same seed gives the same path, and ``clear()``
+    between runs (as ``SimpleSetup`` and ``ompl.tools.Benchmark`` do) starts afresh while
+    the random generator continues, so benchmark runs differ.
+
+    Args:
+        si: OMPL space information over the arm joints.
+        options: Planner settings.
+        name: Planner name reported to OMPL.
+
+    Attributes:
+        iterations: Iterations of the last solve.
+        goal_roots: Goal-tree roots of the last solve.
+    """
+
+    def __init__(
+        self,
+        si: ob.SpaceInformation,
+        options: IKBiRRTOptions | None = None,
+        name: str = "IKBiRRT",
+    ) -> None:
+        super().__init__(si, name)
+        self.options = options or IKBiRRTOptions()
+        self._si = si
+        self._rng = np.random.default_rng(self.options.seed)
+        self.iterations = 0
+        self.goal_roots = 0
+        self.start_tree_size = 0
+        self.goal_tree_size = 0
+
+    def set_seed(self, seed: int | None) -> None:
+        """Restart the planner's random generator from ``seed``."""
+        self._rng = np.random.default_rng(seed)
+
+    def clear(self) -> None:
+        super().clear()
+        self.iterations = 0
+        self.goal_roots = 0
+
+    def setup(self) -> None:
+        super().setup()
+
+    def solve(self, ptc: ob.PlannerTerminationCondition) -> ob.PlannerStatus:
+        pdef = self.getProblemDefinition()
+        goal_region = pdef.getGoal()
+        if not isinstance(goal_region, IKGoalRegion):
+            return ob.PlannerStatus(ob.PlannerStatus.INVALID_GOAL)
+        goal = goal_region.goal
+        checker = goal.checker
+        dof = checker.robot.arm_idx.size
+        lower, upper = checker.robot.arm_lower, checker.robot.arm_upper
+
+        start_tree, goal_tree = _Tree(dof), _Tree(dof)
+        inputs = ob.PlannerInputStates()
+        inputs.use(pdef)
+        state = inputs.nextStart()
+        while state is not None:
+            arm = np.array(state[0:dof])
+            if checker.is_valid(arm):
+                start_tree.add(arm, -1)
+            state = inputs.nextStart()
+        if start_tree.size == 0:
+            return ob.PlannerStatus(ob.PlannerStatus.INVALID_START)
+
+        # At least one goal root before growing: a fresh IK sample, else one found earlier.
+        while goal_tree.size == 0 and not ptc():
+            root = goal.sample(max_restarts=self.options.goal_restarts)
+            if root is None and goal.solutions:
+                root = goal.solutions[int(self._rng.integers(len(goal.solutions)))]
+            if root is not None:
+                goal_tree.add(root, -1)
+        if goal_tree.size == 0:
+            return ob.PlannerStatus(ob.PlannerStatus.TIMEOUT)
+
+        trees = (start_tree, goal_tree)
+        status = ob.PlannerStatus(ob.PlannerStatus.TIMEOUT)
+        while not ptc():
+            self.iterations += 1
+            if self._rng.random() < self.options.p_sample_goal:
+                root = goal.sample(max_restarts=self.options.goal_restarts)
+                if root is not None:
+                    goal_tree.add(root, -1)
+                continue
+            grow, other = trees
+            target = self._rng.uniform(lower, upper)
+            result, new = self._extend(checker, grow, target, ptc)
+            if result is not _Extend.TRAPPED:
+                result, met = self._extend(checker, other, grow.nodes[new], ptc)
+                if result is _Extend.REACHED:
+                    if grow is start_tree:
+                        path = start_tree.branch(new) + goal_tree.branch(met)[::-1][1:]
+                    else:
+                        path = start_tree.branch(met) + goal_tree.branch(new)[::-1][1:]
+                    self._add_solution(pdef, path)
+                    status = ob.PlannerStatus(ob.PlannerStatus.EXACT_SOLUTION)
+                    break
+            trees = (other, grow)
+        self.goal_roots = int(np.sum(goal_tree.parents[: goal_tree.size] < 0))
+        self.start_tree_size = start_tree.size
+        self.goal_tree_size = goal_tree.size
+        return status
+
+    def _extend(
+        self, checker: object, tree: _Tree, target: np.ndarray, ptc: ob.PlannerTerminationCondition
+    ) -> tuple[_Extend, int]:
+        """Algorithm 2: step from the nearest vertex toward ``target``, adding every
+        collision-free step, until the target is reached or a step collides."""
+        index = tree.nearest(target)
+        q = tree.nodes[index].copy()
+        advanced = False
+        step = self.options.max_step
+        while True:
+            delta = target - q
+            distance = math.sqrt(float(delta @ delta))
+            reached = distance <= step
+            nxt = target.copy() if reached else q + delta * (step / distance)
+            if not checker.check_motion(q, nxt):  # type: ignore[attr-defined]
+                return (_Extend.ADVANCED if advanced else _Extend.TRAPPED), index
+            index = tree.add(nxt, index)
+            advanced = True
+            if reached:
+                return _Extend.REACHED, index
+            if ptc():
+                return _Extend.ADVANCED, index
+            q = nxt
+
+    def _add_solution(self, pdef: ob.ProblemDefinition, path: list[np.ndarray]) -> None:
+        si = self._si
+        solution = og.PathGeometric(si)
+        scratch = si.allocState()
+        for arm in path:
+            scratch[0 : arm.size] = arm.tolist()
+            solution.append(scratch)
+        pdef.addSolutionPath(solution, False, 0.0, self.getName())

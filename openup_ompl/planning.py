@@ -1,0 +1,279 @@
+"""GraspPlanningSetup: a reach-to-grasp problem wired into a real ``og.SimpleSetup``.
+
+The arm joints are the state space; :class:`~openup_ompl.validity.CoupledValidityChecker`
+and :class:`~openup_ompl.validity.CoupledMotionValidator` check every state with the hand
+set by the law; the goal is an :class:`~openup_ompl.goal.IKGoalRegion`. Any OMPL planner
+that accepts sampleable goals can be plugged into :attr:`GraspPlanningSetup.simple_setup`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+from ompl import base as ob
+from ompl import geometric as og
+
+from openup_ompl.exceptions import ConfigError, InvalidProblem, PlanningFailed
+from openup_ompl.goal import GOAL_THRESHOLD, GraspGoal, IKGoalRegion
+from openup_ompl.hand_law import HandLaw
+from openup_ompl.ik import IKOptions, IKSolver
+from openup_ompl.plan import Plan
+from openup_ompl.planners.ikbirrt import IKBiRRT, IKBiRRTOptions
+from openup_ompl.scene import Problem
+from openup_ompl.validity import (
+    DEFAULT_RESOLUTION,
+    CoupledChecker,
+    CoupledMotionValidator,
+    CoupledValidityChecker,
+)
+
+PlannerFactory = Callable[[ob.SpaceInformation], ob.Planner]
+
+#: OMPL's geometric planners that plan with an :class:`IKGoalRegion` (checked in the
+#: tests). PRM and PRMstar are left out: they sample goals from a second thread, which
+#: deadlocks on a Python goal while ``solve()`` holds the GIL.
+OMPL_PLANNERS: dict[str, PlannerFactory] = {
+    "rrtconnect": og.RRTConnect,
+    "rrt": og.RRT,
+    "rrtstar": og.RRTstar,
+    "informedrrtstar": og.InformedRRTstar,
+    "sorrtstar": og.SORRTstar,
+    "bitstar": og.BITstar,
+    "aorrtc": og.AORRTC,
+    "fmt": og.FMT,
+    "bfmt": og.BFMT,
+    "kpiece1": og.KPIECE1,
+    "bkpiece1": og.BKPIECE1,
+    "lbkpiece1": og.LBKPIECE1,
+}
+#: Every planner name :meth:`GraspPlanningSetup.solve` accepts.
+PLANNERS: tuple[str, ...] = ("ikbirrt", *OMPL_PLANNERS)
+_UNSUPPORTED = {"prm": "deadlocks on a Python goal region", "prmstar": "deadlocks on a Python goal region"}
+
+#: Planners that optimise a cost and need an objective.
+_OPTIMIZING = {"rrtstar", "informedrrtstar", "sorrtstar", "bitstar", "aorrtc", "fmt", "bfmt"}
+
+
+def _hand_override(value: str | Sequence[float] | None, law: HandLaw) -> np.ndarray | None:
+    if value is None:
+        return None
+    if isinstance(value, str):
+        if value not in ("c", "b", "w"):
+            raise ConfigError("fixed_hand", value, "'c', 'b', 'w' or a hand configuration")
+        return np.asarray(getattr(law, value))
+    return np.asarray(value, dtype=float)
+
+
+class GraspPlanningSetup:
+    """A reach-to-grasp problem on OMPL: state space, coupled checks, IK goal, planners.
+
+    Args:
+        problem: The loaded scene (:func:`~openup_ompl.scene.load_scene`).
+        u: Pose uncertainty in [0, 1] overriding the scene's.
+        continuous: Use the law without the jump at ``mga``.
+        fixed_hand: The classical baseline: keep the hand at this configuration (``"c"``,
+            ``"b"``, ``"w"`` or joint values) for the whole reach instead of the law.
+        resolution: Motion-check resolution [rad] (see
+            :data:`~openup_ompl.validity.DEFAULT_RESOLUTION`).
+        ik_options: IK settings.
+        ikbirrt_options: IKBiRRT settings (its seed is set by :meth:`solve`).
+        max_goal_samples: ``maxSampleCount()`` of the goal region.
+
+    Raises:
+        ConfigError: A bad option.
+        InvalidProblem: The start collides, or is already at the grasp pose.
+        UnreachableGrasp: No collision-free IK solution of the grasp pose was found.
+
+    Attributes:
+        simple_setup: The ``og.SimpleSetup``; plug any OMPL planner into it.
+        checker: The numpy-level coupled check (counters of checks live there).
+        goal_region: The ``IKGoalRegion`` set as the problem's goal.
+    """
+
+    def __init__(
+        self,
+        problem: Problem,
+        u: float | None = None,
+        *,
+        continuous: bool | None = None,
+        fixed_hand: str | Sequence[float] | None = None,
+        resolution: float = DEFAULT_RESOLUTION,
+        ik_options: IKOptions | None = None,
+        ikbirrt_options: IKBiRRTOptions | None = None,
+        max_goal_samples: int = 25,
+    ) -> None:
+        self.problem = problem
+        robot = problem.robot
+        self.law = problem.hand_law.with_options(
+            **{
+                k: v
+                for k, v in (("u", u), ("continuous", continuous))
+                if v is not None
+            },
+            fixed=_hand_override(fixed_hand, problem.hand_law),
+        )
+        self.ikbirrt_options = ikbirrt_options or IKBiRRTOptions()
+        dof = robot.arm_idx.size
+        space = ob.RealVectorStateSpace(dof)
+        bounds = ob.RealVectorBounds(dof)
+        for i, (low, high) in enumerate(zip(robot.arm_lower, robot.arm_upper)):
+            bounds.setLow(i, float(low))
+            bounds.setHigh(i, float(high))
+        space.setBounds(bounds)
+        self.space = space
+        self.simple_setup = og.SimpleSetup(space)
+        si = self.simple_setup.getSpaceInformation()
+        self.space_information = si
+        self.checker = CoupledChecker(problem, self.law, resolution=resolution)
+        self.validity_checker = CoupledValidityChecker(si, self.checker)
+        self.motion_validator = CoupledMotionValidator(si, self.checker)
+        self.simple_setup.setStateValidityChecker(self.validity_checker)
+        si.setMotionValidator(self.motion_validator)
+        si.setStateValidityCheckingResolution(min(1.0, resolution / max(space.getMaximumExtent(), 1e-9)))
+
+        if not self.checker.is_valid(problem.start):
+            pairs = self.checker.world.colliding_pairs(self.checker.full_q(problem.start))
+            raise InvalidProblem(f"start configuration {problem.start.tolist()} is in collision: {pairs}")
+        start = si.allocState()
+        start[0:dof] = problem.start.tolist()
+        self.simple_setup.setStartState(start)
+
+        self.ik = IKSolver(robot, problem.grasp, ik_options)
+        self._goal_rng_seed = 0
+        self.goal = GraspGoal(self.checker, self.ik, np.random.default_rng(self._goal_rng_seed))
+        start_distance = self.goal.distance(problem.start)
+        if start_distance <= GOAL_THRESHOLD:
+            raise InvalidProblem(
+                f"start is already at the grasp pose (task-space distance {start_distance:.2e} m)"
+            )
+        self.goal_region = IKGoalRegion(si, self.goal, max_samples=max_goal_samples)
+        self._initial_solutions = list(self.goal.solutions)
+        self.simple_setup.setGoal(self.goal_region)
+
+    def make_planner(self, name: str, seed: int | None = None) -> ob.Planner:
+        """A planner by name (see :data:`PLANNERS`) on this setup's space information."""
+        key = name.lower()
+        si = self.space_information
+        if key == "ikbirrt":
+            options = IKBiRRTOptions(**{**self.ikbirrt_options.__dict__, "seed": seed})
+            return IKBiRRT(si, options)
+        if key in OMPL_PLANNERS:
+            if key in _OPTIMIZING:
+                self.simple_setup.setOptimizationObjective(ob.PathLengthOptimizationObjective(si))
+            return OMPL_PLANNERS[key](si)
+        why = f" ({_UNSUPPORTED[key]})" if key in _UNSUPPORTED else ""
+        raise ConfigError("planner", name, f"one of {list(PLANNERS)}{why}")
+
+    def reseed(self, seed: int | None) -> None:
+        """Restart the run's random generators (IK restarts, goal sampling) from ``seed``."""
+        self.goal.rng = np.random.default_rng(seed)
+        self.goal.solutions[:] = self._initial_solutions
+
+    def solve(
+        self,
+        time_limit: float = 5.0,
+        planner: str | ob.Planner = "ikbirrt",
+        seed: int | None = None,
+        simplify: bool = False,
+        simplify_time: float = 1.0,
+    ) -> Plan:
+        """Plan from the start to the grasp; the plan's hand follows the law everywhere.
+
+        Args:
+            time_limit: Planning time [s].
+            planner: A name from :data:`PLANNERS` or an ``ob.Planner`` built on
+                :attr:`space_information`.
+            seed: Seeds IK and goal sampling, and IKBiRRT entirely (same seed, same
+                path). OMPL's own planners draw from OMPL's process-wide generator, which
+                only ``ompl.util.RNG.setSeed`` before any OMPL object fixes (the command
+                line does that).
+            simplify: Shortcut the path with OMPL's ``PathSimplifier`` (through the
+                coupled motion validator); the hand is then re-derived from the law.
+            simplify_time: Time budget of the simplification [s].
+
+        Raises:
+            ConfigError: Bad time limit or planner name.
+            PlanningFailed: No exact solution in time (the message gives OMPL's status).
+        """
+        if not (isinstance(time_limit, (int, float)) and math.isfinite(time_limit) and time_limit > 0):
+            raise ConfigError("time_limit", time_limit, "a positive number of seconds")
+        ss = self.simple_setup
+        if isinstance(planner, ob.Planner):
+            instance = planner
+            if isinstance(instance, IKBiRRT):
+                instance.set_seed(seed)
+        else:
+            instance = self.make_planner(planner, seed)
+        self.reseed(seed)
+        ss.setPlanner(instance)
+        ss.clear()
+        checks_before = self.checker.states_checked
+        motions_before = self.checker.motions_checked
+        ik_before = self.ik.calls
+        started = time.perf_counter()
+        status = ss.solve(float(time_limit))
+        solve_time = time.perf_counter() - started
+        name = instance.getName()
+        if status != ob.PlannerStatus.EXACT_SOLUTION or not ss.haveExactSolutionPath():
+            raise PlanningFailed(status.getStatus().name.lower().replace("_", " "), name, time_limit)
+        if simplify:
+            ss.simplifySolution(float(simplify_time))
+        dof = self.problem.robot.arm_idx.size
+        waypoints = np.array([s[0:dof] for s in ss.getSolutionPath().getStates()])
+        stats: dict[str, Any] = {
+            "state_checks": self.checker.states_checked - checks_before,
+            "motion_checks": self.checker.motions_checked - motions_before,
+            "ik_calls": self.ik.calls - ik_before,
+            "waypoints": int(waypoints.shape[0]),
+        }
+        if isinstance(instance, IKBiRRT):
+            stats.update(
+                iterations=instance.iterations,
+                goal_roots=instance.goal_roots,
+                start_tree=instance.start_tree_size,
+                goal_tree=instance.goal_tree_size,
+            )
+        path = self.densify(waypoints)
+        self.verify(path)
+        return Plan(
+            path=path,
+            waypoints=waypoints,
+            status=str(status),
+            planner=name,
+            seed=seed,
+            solve_time_s=solve_time,
+            problem=self.problem,
+            law=self.law,
+            start_palm_distance=self.checker.goal_distance.start_distance,
+            stats=stats,
+        )
+
+    def densify(self, waypoints: np.ndarray) -> np.ndarray:
+        """Full configurations along the waypoints at the checker's resolution, the hand
+        from the law at every row: ``(N, nq)``."""
+        arms = [waypoints[:1]]
+        for a, b in zip(waypoints[:-1], waypoints[1:]):
+            arms.append(self.checker.interpolate(a, b))
+        return self.checker.full_qs(np.concatenate(arms)).T.copy()
+
+    def verify(self, path: np.ndarray) -> None:
+        """Refuse a path that is not a valid plan: it must start at the start, end on the
+        grasp pose within the goal threshold, and collide nowhere.
+
+        Raises:
+            PlanningFailed: With the reason; never expected from a correct planner.
+        """
+        robot = self.problem.robot
+        arms = path[:, robot.arm_idx]
+        if not np.allclose(arms[0], self.problem.start, atol=1e-9):
+            raise PlanningFailed("path does not start at the start", "verify", 0.0)
+        distance = self.goal.distance(arms[-1])
+        if distance > GOAL_THRESHOLD:
+            raise PlanningFailed(f"path ends {distance:.2e} m from the grasp pose", "verify", 0.0)
+        flags = self.checker.world.batch_in_collision(np.asfortranarray(path.T), stop_at_first=False)
+        if np.any(flags):
+            raise PlanningFailed(f"path row {int(np.flatnonzero(flags)[0])} collides", "verify", 0.0)

@@ -1,0 +1,183 @@
+"""Scene files (CONTRACT §3): robot, start, grasp pose, hand law, object and obstacles."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import coal
+import numpy as np
+import pinocchio as pin
+
+from openup_ompl import _toml
+from openup_ompl._resources import data_dir
+from openup_ompl.exceptions import ConfigError
+from openup_ompl.hand_law import HandLaw
+from openup_ompl.robot import Robot, find_robot_file, load_robot
+
+SHAPES = ("box", "cylinder", "sphere")
+
+
+@dataclass(frozen=True)
+class Shape:
+    """A box, cylinder or sphere fixed in the world frame.
+
+    Attributes:
+        name: Unique name (used for its Coal geometry).
+        shape: ``"box"``, ``"cylinder"`` or ``"sphere"``.
+        pose: ``[x, y, z, qx, qy, qz, qw]`` of its centre in the world frame.
+        size: Box full side lengths [m] (x, y, z).
+        radius: Cylinder or sphere radius [m].
+        length: Cylinder length [m] along its local z.
+        raw: The table as written in the scene file (repeated in plan files).
+    """
+
+    name: str
+    shape: str
+    pose: np.ndarray
+    size: np.ndarray | None = None
+    radius: float | None = None
+    length: float | None = None
+    raw: dict[str, Any] = field(default_factory=dict, compare=False)
+
+    @classmethod
+    def from_table(cls, table: Any, where: str) -> Shape:
+        if not isinstance(table, dict):
+            raise ConfigError(where, table, "a table with name, shape, pose and dimensions")
+        name = _toml.string(_toml.require(table, "name", where), f"{where}.name")
+        shape = _toml.require(table, "shape", where)
+        if shape not in SHAPES:
+            raise ConfigError(f"{where}.shape", shape, f"one of {SHAPES}")
+        pose = _toml.pose(_toml.require(table, "pose", where), f"{where}.pose")
+        if shape == "box":
+            size = _toml.vector(_toml.require(table, "size", where), f"{where}.size", 3)
+            if np.any(size <= 0):
+                raise ConfigError(f"{where}.size", table["size"], "three positive lengths [m]")
+            return cls(name, shape, pose, size=size, raw=dict(table))
+        radius = _toml.number(_toml.require(table, "radius", where), f"{where}.radius", low=1e-6)
+        if shape == "sphere":
+            return cls(name, shape, pose, radius=radius, raw=dict(table))
+        length = _toml.number(_toml.require(table, "length", where), f"{where}.length", low=1e-6)
+        return cls(name, shape, pose, radius=radius, length=length, raw=dict(table))
+
+    @property
+    def placement(self) -> pin.SE3:
+        """World placement of the shape's centre."""
+        return pin.XYZQUATToSE3(self.pose)
+
+    def geometry(self) -> coal.CollisionGeometry:
+        """The Coal collision geometry of this shape, centred at its origin."""
+        if self.shape == "box":
+            return coal.Box(*self.size)  # type: ignore[misc]
+        if self.shape == "sphere":
+            return coal.Sphere(self.radius)
+        return coal.Cylinder(self.radius, self.length)
+
+    def moved(self, pose: np.ndarray) -> Shape:
+        """The same shape at another pose (e.g. a perturbed object)."""
+        return Shape(self.name, self.shape, np.asarray(pose, float), self.size, self.radius,
+                     self.length, {**self.raw, "pose": list(map(float, pose))})
+
+
+@dataclass(eq=False)
+class Problem:
+    """A reach-to-grasp problem: everything a planner needs, loaded and validated.
+
+    Attributes:
+        robot: The loaded robot.
+        start: Start arm configuration [rad].
+        grasp_pose: Palm frame target ``[x, y, z, qx, qy, qz, qw]`` in the world frame.
+        hand_law: The hand law with the scene's overrides applied.
+        obstacles: Fixed obstacles.
+        object: The object to grasp (collides like an obstacle), or ``None``.
+        path: The scene file, if loaded from one.
+    """
+
+    robot: Robot
+    start: np.ndarray
+    grasp_pose: np.ndarray
+    hand_law: HandLaw
+    obstacles: list[Shape]
+    object: Shape | None = None
+    path: Path | None = None
+
+    @property
+    def grasp(self) -> pin.SE3:
+        """Grasp pose of the palm frame as a Pinocchio ``SE3`` (world frame)."""
+        return pin.XYZQUATToSE3(self.grasp_pose)
+
+    @property
+    def environment(self) -> list[Shape]:
+        """Everything the robot must not touch: the obstacles and the object."""
+        return [*self.obstacles, *([self.object] if self.object is not None else [])]
+
+
+def default_scene_path() -> Path:
+    """The scene ``openup-ompl demo`` plans: the Panda reaching a can past an obstacle."""
+    return data_dir("scenes") / "panda_can.toml"
+
+
+def load_scene(path: str | Path, robot: Robot | None = None) -> Problem:
+    """Load a scene TOML (CONTRACT §3) into a :class:`Problem`.
+
+    Args:
+        path: The scene file.
+        robot: An already loaded robot to use instead of loading the scene's ``robot``
+            again (it must be the same robot file).
+
+    Raises:
+        ConfigError: A missing key or bad value, named with its file and key.
+        RobotNotFound, JointNotFound, FrameNotFound: From loading the robot.
+    """
+    path = Path(path).expanduser().resolve()
+    raw = _toml.read_toml(path, "scene file")
+    where = path.name
+    robot_name = _toml.string(_toml.require(raw, "robot", where), f"{where}: robot")
+    robot_file = find_robot_file(robot_name, relative_to=path.parent)
+    if robot is None:
+        robot = load_robot(robot_file)
+    elif robot.spec.path != robot_file:
+        raise ConfigError(f"{where}: robot", robot_name, f"the robot passed in ({robot.spec.path})")
+    start = robot.spec.home
+    if "start" in raw:
+        start = _toml.vector(raw["start"], f"{where}: start", robot.arm_idx.size)
+    start = robot.check_arm(start, f"{where}: start")
+    grasp = _toml.require(raw, "grasp", where)
+    if not isinstance(grasp, dict):
+        raise ConfigError(f"{where}: grasp", grasp, "a [grasp] table with a pose")
+    grasp_pose = _toml.pose(_toml.require(grasp, "pose", f"{where}: grasp"), f"{where}: grasp.pose")
+    hand = raw.get("hand", {})
+    if not isinstance(hand, dict):
+        raise ConfigError(f"{where}: hand", hand, "a [hand] table")
+    known = {"c", "b", "w", "u", "mga", "continuous", "distance", "rotation_weight"}
+    unknown = sorted(set(hand) - known)
+    if unknown:
+        raise ConfigError(f"{where}: hand.{unknown[0]}", hand[unknown[0]], f"one of {sorted(known)}")
+    n = robot.hand_idx.size
+    overrides: dict[str, object] = {}
+    for key in ("c", "b", "w"):
+        if key in hand:
+            overrides[key] = _toml.vector(hand[key], f"{where}: hand.{key}", n)
+    if "u" in hand:
+        overrides["u"] = _toml.number(hand["u"], f"{where}: hand.u", low=0.0, high=1.0)
+    if "mga" in hand:
+        overrides["mga"] = _toml.number(hand["mga"], f"{where}: hand.mga", low=1e-9, high=1.0)
+    if "rotation_weight" in hand:
+        overrides["rotation_weight"] = _toml.number(hand["rotation_weight"], f"{where}: hand.rotation_weight", low=0.0)
+    for key in ("continuous", "distance"):
+        if key in hand:
+            overrides[key] = hand[key]
+    if "continuous" in overrides and not isinstance(overrides["continuous"], bool):
+        raise ConfigError(f"{where}: hand.continuous", overrides["continuous"], "true or false")
+    law = robot.hand_law(**overrides)
+    obstacles_raw = raw.get("obstacles", [])
+    if not isinstance(obstacles_raw, list):
+        raise ConfigError(f"{where}: obstacles", obstacles_raw, "an array of [[obstacles]] tables")
+    obstacles = [Shape.from_table(t, f"{where}: obstacles[{i}]") for i, t in enumerate(obstacles_raw)]
+    obj = Shape.from_table(raw["object"], f"{where}: object") if "object" in raw else None
+    names = [shape.name for shape in obstacles] + ([obj.name] if obj else [])
+    duplicate = next((n for n in names if names.count(n) > 1), None)
+    if duplicate is not None:
+        raise ConfigError(f"{where}: obstacle name", duplicate, "names unique within the scene")
+    return Problem(robot, start, grasp_pose, law, obstacles, obj, path)

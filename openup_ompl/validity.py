@@ -1,0 +1,234 @@
+"""Coupled validity: every arm state is checked with the hand set by the hand law.
+
+The arm joints are OMPL's state space; the fingers follow. For an arm configuration the
+checker computes the palm placement (forward kinematics), the normalised distance ``d``
+to the grasp pose (Algorithm 1), the hand from the law (Algorithm 3), and checks the full
+configuration for self, obstacle and object collision with Coal.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pinocchio as pin
+from ompl import base as ob
+
+from openup_ompl.collision import CollisionWorld, ThreadContext
+from openup_ompl.hand_law import GoalDistance, HandLaw
+from openup_ompl.scene import Problem
+
+#: Default motion-check resolution: largest arm joint-space step [rad, Euclidean norm over
+#: the arm joints] between two consecutive checked states of a motion.
+DEFAULT_RESOLUTION = 0.015
+
+
+class CoupledChecker:
+    """The numpy-level coupled check shared by the OMPL validity checker, the motion
+    validator, inverse kinematics and the planners.
+
+    Args:
+        problem: Robot, scene and grasp.
+        law: The hand law (``problem.hand_law`` if omitted).
+        world: A collision world to reuse (built from ``problem`` if omitted).
+        resolution: Motion-check resolution [rad] (see :data:`DEFAULT_RESOLUTION`).
+
+    Attributes:
+        states_checked: States checked so far (single and batched).
+        motions_checked: Motions checked so far.
+    """
+
+    def __init__(
+        self,
+        problem: Problem,
+        law: HandLaw | None = None,
+        world: CollisionWorld | None = None,
+        resolution: float = DEFAULT_RESOLUTION,
+    ) -> None:
+        if not (math.isfinite(resolution) and resolution > 0):
+            from openup_ompl.exceptions import ConfigError
+
+            raise ConfigError("resolution", resolution, "a positive joint-space step [rad]")
+        self.problem = problem
+        self.robot = problem.robot
+        self.law = problem.hand_law if law is None else law
+        self.world = CollisionWorld(problem) if world is None else world
+        self.resolution = float(resolution)
+        self._model = self.robot.model
+        self._palm = self.robot.palm_frame_id
+        start_q = self.robot.full_q(problem.start, self.law(1.0))
+        self.goal_distance = GoalDistance(
+            problem.grasp,
+            self.robot.palm_placement(self._model.createData(), start_q),
+            self.law.distance,
+            self.law.rotation_weight,
+        )
+        self._arm_idx = self.robot.arm_idx
+        self._hand_idx = self.robot.hand_idx
+        self._arm_sel = _selector(self._arm_idx)
+        self._hand_sel = _selector(self._hand_idx)
+        self._translation_only = self.law.distance == "translation"
+        self._goal = problem.grasp.translation.tolist()
+        self._inv_start = 1.0 / self.goal_distance.start_distance
+        self.states_checked = 0
+        self.motions_checked = 0
+
+    # -- single states ----------------------------------------------------------------
+    def distance(self, arm: np.ndarray) -> float:
+        """Normalised palm-to-grasp distance ``d`` (Algorithm 1) of an arm configuration."""
+        context = self.world.context()
+        q = context.q
+        q[self._arm_sel] = arm
+        pin.forwardKinematics(self._model, context.data, q)
+        return self.goal_distance(pin.updateFramePlacement(self._model, context.data, self._palm))
+
+    def hand(self, arm: np.ndarray) -> np.ndarray:
+        """Hand configuration the law gives at an arm configuration."""
+        return self.full_q(arm)[self._hand_idx]
+
+    def full_q(self, arm: np.ndarray) -> np.ndarray:
+        """Full configuration for an arm configuration, the hand set by the law (a copy)."""
+        context = self.world.context()
+        self._fill(context, arm)
+        return context.q.copy()
+
+    def _fill(self, context: ThreadContext, arm: object) -> None:
+        """Write arm (any sequence of floats) and law-driven hand into ``context.q``.
+
+        This is the hot path of every check: it allocates no array and makes as few
+        Python-level calls as the law allows (measured in ``benchmarks/bench_validity.py``).
+        """
+        q = context.q
+        q[self._arm_sel] = arm
+        law = self.law
+        if law.fixed_clipped is not None:
+            q[self._hand_sel] = law.fixed_clipped
+            return
+        pin.forwardKinematics(self._model, context.data, q)
+        placement = pin.updateFramePlacement(self._model, context.data, self._palm)
+        if self._translation_only:
+            d = math.dist(placement.translation.tolist(), self._goal) * self._inv_start
+        else:
+            d = self.goal_distance(placement)
+        if d > law.mga:
+            q[self._hand_sel] = law.high
+        else:
+            hand = context.hand
+            np.multiply(law.low_slope, d, out=hand)
+            np.add(hand, law.c, out=hand)
+            if law.clip_low:
+                np.clip(hand, law.lower, law.upper, out=hand)
+            q[self._hand_sel] = hand
+
+    def is_valid(self, arm: object) -> bool:
+        """Whether the arm configuration, hand set by the law, is collision-free."""
+        self.states_checked += 1
+        context = self.world.context()
+        self._fill(context, arm)
+        return not pin.computeCollisions(self._model, context.data, context.manager, context.q, True)
+
+    def is_valid_with_hand(self, arm: np.ndarray, hand: np.ndarray) -> bool:
+        """Whether the arm configuration with the given hand is collision-free."""
+        self.states_checked += 1
+        return not self.world.in_collision(self.robot.full_q(arm, hand))
+
+    # -- motions --------------------------------------------------------------------------
+    def segment_count(self, a: np.ndarray, b: np.ndarray) -> int:
+        """Number of steps the motion ``a -> b`` is cut into at :attr:`resolution`."""
+        return max(1, math.ceil(float(np.linalg.norm(b - a)) / self.resolution))
+
+    def interpolate(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Arm states checked along ``a -> b``, excluding ``a``, including ``b``: ``(n, dof)``."""
+        n = self.segment_count(a, b)
+        t = np.arange(1, n + 1, dtype=float)[:, None] / n
+        return a + t * (b - a)
+
+    def full_qs(self, arms: np.ndarray) -> np.ndarray:
+        """Full configurations, hand from the law, for arm states ``(n, dof)``: ``(nq, n)``."""
+        arms = np.atleast_2d(arms)
+        qs = np.empty((self._model.nq, arms.shape[0]), order="F")
+        qs[:] = self.robot.neutral()[:, None]
+        qs[self._arm_idx, :] = arms.T
+        if self.law.fixed is None:
+            data = self.world.context().data
+            d = np.empty(arms.shape[0])
+            for i in range(arms.shape[0]):
+                pin.forwardKinematics(self._model, data, qs[:, i])
+                d[i] = self.goal_distance(pin.updateFramePlacement(self._model, data, self._palm))
+        else:
+            d = np.zeros(arms.shape[0])
+        qs[self._hand_idx, :] = self.law.batch(d).T
+        return qs
+
+    def check_motion(self, a: np.ndarray, b: np.ndarray) -> bool:
+        """Whether the straight arm motion ``a -> b`` is collision-free with the coupled hand.
+
+        ``a`` is assumed valid (OMPL's convention). ``b`` is checked first, then the
+        intermediate states at :attr:`resolution`, in one batched parallel query.
+        """
+        self.motions_checked += 1
+        if not self.is_valid(b):
+            return False
+        arms = self.interpolate(a, b)[:-1]
+        if arms.shape[0] == 0:
+            return True
+        self.states_checked += arms.shape[0]
+        return not bool(np.any(self.world.batch_in_collision(self.full_qs(arms))))
+
+    def check_motion_serial(self, a: np.ndarray, b: np.ndarray) -> bool:
+        """:meth:`check_motion` one state at a time (the reference the batch is measured
+        against in ``benchmarks/bench_validity.py``)."""
+        self.motions_checked += 1
+        if not self.is_valid(b):
+            return False
+        return all(self.is_valid(arm) for arm in self.interpolate(a, b)[:-1])
+
+    def first_invalid(self, a: np.ndarray, b: np.ndarray) -> int:
+        """Index of the first colliding state of :meth:`interpolate` ``(a, b)``, or -1."""
+        arms = self.interpolate(a, b)
+        flags = self.world.batch_in_collision(self.full_qs(arms), stop_at_first=False)
+        self.states_checked += arms.shape[0]
+        hits = np.flatnonzero(flags)
+        return int(hits[0]) if hits.size else -1
+
+
+def _selector(indices: np.ndarray) -> slice | np.ndarray:
+    """A slice equal to a run of consecutive indices (faster assignment), else the indices."""
+    if indices.size and np.all(np.diff(indices) == 1):
+        return slice(int(indices[0]), int(indices[-1]) + 1)
+    return indices
+
+
+class CoupledValidityChecker(ob.StateValidityChecker):
+    """OMPL state validity checker: arm state -> FK -> ``d`` -> hand law -> Coal collision.
+
+    Args:
+        si: OMPL space information over the arm joints (``RealVectorStateSpace``).
+        checker: The coupled check to run.
+    """
+
+    def __init__(self, si: ob.SpaceInformation, checker: CoupledChecker) -> None:
+        super().__init__(si)
+        self.checker = checker
+        self._n = checker.robot.arm_idx.size
+
+    def isValid(self, state: ob.State) -> bool:  # noqa: N802 - OMPL's name
+        return self.checker.is_valid(state[0 : self._n])
+
+
+class CoupledMotionValidator(ob.MotionValidator):
+    """OMPL motion validator: the arm interpolated at the checker's resolution, the hand
+    following the law at every intermediate state, all states checked in one batch.
+
+    Only ``checkMotion(s1, s2)`` is available from Python (OMPL's last-valid overload is
+    not bound). ``s1`` is assumed valid; ``s2`` is checked.
+    """
+
+    def __init__(self, si: ob.SpaceInformation, checker: CoupledChecker) -> None:
+        super().__init__(si)
+        self.checker = checker
+        self._n = checker.robot.arm_idx.size
+
+    def checkMotion(self, s1: ob.State, s2: ob.State) -> bool:  # noqa: N802 - OMPL's name
+        n = self._n
+        return self.checker.check_motion(np.array(s1[0:n]), np.array(s2[0:n]))
