@@ -1,0 +1,155 @@
+"""Command line: ``openup-ompl plan``, ``openup-ompl demo`` (also ``python -m openup_ompl``).
+
+Bad input ends with one line on stderr and exit status 2; a planner that finds no
+solution ends with its OMPL status on stderr and exit status 1. No plan file is written
+unless it holds a valid plan.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import secrets
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from openup_ompl.exceptions import OpenUpError, PlanningFailed
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return value
+
+
+def _unit_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number in [0, 1], got {text!r}") from None
+    if not (0.0 <= value <= 1.0):
+        raise argparse.ArgumentTypeError(f"expected a number in [0, 1], got {text!r}")
+    return value
+
+
+def _seed(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer seed >= 0, got {text!r}") from None
+    if not 0 <= value < 2**31:
+        raise argparse.ArgumentTypeError(f"expected an integer seed in [0, 2^31), got {text!r}")
+    return value
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from openup_ompl.planning import PLANNERS
+
+    parser = _Parser(prog="openup-ompl", description=__doc__.splitlines()[0] if __doc__ else None)
+    commands = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    def planning_options(sub: argparse.ArgumentParser, default_time: float) -> None:
+        sub.add_argument("--u", type=_unit_float, default=None, help="pose uncertainty in [0, 1] (default: the scene's)")
+        sub.add_argument("--planner", default="ikbirrt", choices=PLANNERS, metavar="NAME",
+                         help=f"one of {', '.join(PLANNERS)} (default: ikbirrt)")
+        sub.add_argument("--time", type=_positive_float, default=default_time, help="planning time limit [s]")
+        sub.add_argument("--seed", type=_seed, default=None, help="random seed (default: drawn, and written in the plan)")
+        sub.add_argument("--no-simplify", action="store_true", help="keep the planner's raw path")
+        sub.add_argument("--continuous", action="store_true", help="use the hand law without the jump at mga")
+
+    plan = commands.add_parser("plan", help="plan a scene file and write the plan file")
+    plan.add_argument("scene", type=Path, help="scene TOML (CONTRACT section 3)")
+    planning_options(plan, 5.0)
+    plan.add_argument("--out", type=Path, default=None, help="plan JSON to write")
+
+    demo = commands.add_parser("demo", help="plan the default scene; write its plan and pictures")
+    planning_options(demo, 5.0)
+    demo.add_argument("--out", type=Path, default=Path("openup-demo"), help="output directory")
+    return parser
+
+
+def _plan(args: argparse.Namespace, scene: Path):  # type: ignore[no-untyped-def]
+    from openup_ompl.planning import GraspPlanningSetup
+    from openup_ompl.scene import load_scene
+
+    problem = load_scene(scene)
+    setup = GraspPlanningSetup(problem, u=args.u, continuous=True if args.continuous else None)
+    plan = setup.solve(
+        time_limit=args.time, planner=args.planner, seed=args.seed, simplify=not args.no_simplify
+    )
+    return setup, plan
+
+
+def _summary(plan) -> str:  # type: ignore[no-untyped-def]
+    return (
+        f"{plan.status.lower()} by {plan.planner} in {plan.solve_time_s * 1e3:.0f} ms "
+        f"(seed {plan.seed}, u = {plan.law.u:g}, {plan.waypoints.shape[0]} waypoints, "
+        f"{plan.path.shape[0]} states)"
+    )
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; returns the exit status."""
+    args = build_parser().parse_args(argv)
+    if args.seed is None:
+        args.seed = secrets.randbelow(2**31)
+    from ompl import util as ompl_util
+
+    # OMPL's planners draw from one process-wide generator that can only be seeded before
+    # any OMPL object exists: do it first, so that the same seed gives the same plan.
+    ompl_util.RNG.setSeed(args.seed)
+    ompl_util.setLogLevel(ompl_util.LOG_ERROR)
+    try:
+        if args.command == "plan":
+            _, plan = _plan(args, args.scene)
+            print(_summary(plan))
+            if args.out is not None:
+                print(f"plan written to {plan.save(args.out)}")
+        elif args.command == "demo":
+            from openup_ompl.scene import default_scene_path
+
+            setup, plan = _plan(args, default_scene_path())
+            print(_summary(plan))
+            out: Path = args.out
+            print(f"plan written to {plan.save(out / 'plan.json')}")
+            try:
+                from openup_ompl.figures import plot_hand_law
+
+                distances = [setup.checker.distance(arm) for arm in plan.arm_path]
+                import numpy as np
+
+                figure = plot_hand_law(plan, np.array(distances), out / "hand_law.png")
+                print(f"hand law figure written to {figure}")
+            except ImportError as error:
+                print(f"no figures: {error}", file=sys.stderr)
+    except PlanningFailed as error:
+        print(f"openup-ompl: planning failed: {error}", file=sys.stderr)
+        return 1
+    except (OpenUpError, OSError) as error:
+        print(f"openup-ompl: error: {error}", file=sys.stderr)
+        return 2
+    return 0
+
+
+def run() -> None:
+    """Console entry point: exit without interpreter teardown, which would make the
+    nanobind bindings print reference-leak notes after the one line we promise."""
+    status = main()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(status)
+
+
+if __name__ == "__main__":
+    run()
