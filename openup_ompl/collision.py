@@ -36,18 +36,23 @@ class ThreadContext:
     hand: np.ndarray
 
 
-def build_collision_model(problem: Problem, environment: list[Shape] | None = None) -> pin.GeometryModel:
+def build_collision_model(
+    problem: Problem, environment: list[Shape] | None = None, padding: float = 0.0
+) -> pin.GeometryModel:
     """Robot geometry plus the environment shapes, with the pairs to test.
 
     Pairs: the robot's self-collision pairs (already pruned by its SRDF) and every robot
     geometry against every environment shape. Environment shapes never test each other.
+    Each environment shape is grown by ``padding`` [m] on every side.
     """
     robot = problem.robot
     model = robot.collision_model.copy()
     n_robot = model.ngeoms
     shapes = problem.environment if environment is None else environment
     for shape in shapes:
-        geometry = pin.GeometryObject(f"env/{shape.name}", 0, 0, shape.placement, shape.geometry())
+        geometry = pin.GeometryObject(
+            f"env/{shape.name}", 0, 0, shape.placement, shape.geometry(padding)
+        )
         model.addGeometryObject(geometry)
     for env in range(n_robot, model.ngeoms):
         for link in range(n_robot):
@@ -62,6 +67,7 @@ class CollisionWorld:
         problem: Robot, obstacles and object.
         num_threads: Threads for batched queries (default: the machine's cores).
         environment: Shapes to collide with instead of ``problem.environment``.
+        padding: Margin [m] grown around every environment shape.
     """
 
     def __init__(
@@ -69,10 +75,12 @@ class CollisionWorld:
         problem: Problem,
         num_threads: int | None = None,
         environment: list[Shape] | None = None,
+        padding: float = 0.0,
     ) -> None:
         self.problem = problem
+        self.padding = float(padding)
         self.model = problem.robot.model
-        self.geometry_model = build_collision_model(problem, environment)
+        self.geometry_model = build_collision_model(problem, environment, self.padding)
         self.num_threads = max(1, num_threads or os.cpu_count() or 1)
         self._local = threading.local()
         self._pool: _ManagerPool | None = None

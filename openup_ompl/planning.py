@@ -34,8 +34,9 @@ from openup_ompl.validity import (
 PlannerFactory = Callable[[ob.SpaceInformation], ob.Planner]
 
 #: OMPL's geometric planners that plan with an :class:`IKGoalRegion` (checked in the
-#: tests). PRM and PRMstar are left out: they sample goals from a second thread, which
-#: deadlocks on a Python goal while ``solve()`` holds the GIL.
+#: tests). Left out: PRM and PRMstar sample goals from a second thread, which deadlocks on
+#: a Python goal while ``solve()`` holds the GIL; AORRTC segfaults with a Python goal
+#: region in OMPL 2.0.1's bindings.
 OMPL_PLANNERS: dict[str, PlannerFactory] = {
     "rrtconnect": og.RRTConnect,
     "rrt": og.RRT,
@@ -43,7 +44,6 @@ OMPL_PLANNERS: dict[str, PlannerFactory] = {
     "informedrrtstar": og.InformedRRTstar,
     "sorrtstar": og.SORRTstar,
     "bitstar": og.BITstar,
-    "aorrtc": og.AORRTC,
     "fmt": og.FMT,
     "bfmt": og.BFMT,
     "kpiece1": og.KPIECE1,
@@ -52,10 +52,14 @@ OMPL_PLANNERS: dict[str, PlannerFactory] = {
 }
 #: Every planner name :meth:`GraspPlanningSetup.solve` accepts.
 PLANNERS: tuple[str, ...] = ("ikbirrt", *OMPL_PLANNERS)
-_UNSUPPORTED = {"prm": "deadlocks on a Python goal region", "prmstar": "deadlocks on a Python goal region"}
+_UNSUPPORTED = {
+    "prm": "deadlocks on a Python goal region",
+    "prmstar": "deadlocks on a Python goal region",
+    "aorrtc": "crashes on a Python goal region in OMPL 2.0.1",
+}
 
 #: Planners that optimise a cost and need an objective.
-_OPTIMIZING = {"rrtstar", "informedrrtstar", "sorrtstar", "bitstar", "aorrtc", "fmt", "bfmt"}
+_OPTIMIZING = {"rrtstar", "informedrrtstar", "sorrtstar", "bitstar", "fmt", "bfmt"}
 
 
 def _hand_override(value: str | Sequence[float] | None, law: HandLaw) -> np.ndarray | None:
@@ -77,8 +81,10 @@ class GraspPlanningSetup:
         continuous: Use the law without the jump at ``mga``.
         fixed_hand: The classical baseline: keep the hand at this configuration (``"c"``,
             ``"b"``, ``"w"`` or joint values) for the whole reach instead of the law.
-        resolution: Motion-check resolution [rad] (see
-            :data:`~openup_ompl.validity.DEFAULT_RESOLUTION`).
+        resolution: Motion-check resolution [m]: no robot point moves more between two
+            checked states (see :data:`~openup_ompl.validity.DEFAULT_RESOLUTION`).
+        padding: Margin [m] around obstacles and object (default ``resolution / 2``,
+            which makes motion checks exact for the unpadded scene).
         ik_options: IK settings.
         ikbirrt_options: IKBiRRT settings (its seed is set by :meth:`solve`).
         max_goal_samples: ``maxSampleCount()`` of the goal region.
@@ -102,6 +108,7 @@ class GraspPlanningSetup:
         continuous: bool | None = None,
         fixed_hand: str | Sequence[float] | None = None,
         resolution: float = DEFAULT_RESOLUTION,
+        padding: float | None = None,
         ik_options: IKOptions | None = None,
         ikbirrt_options: IKBiRRTOptions | None = None,
         max_goal_samples: int = 25,
@@ -128,12 +135,14 @@ class GraspPlanningSetup:
         self.simple_setup = og.SimpleSetup(space)
         si = self.simple_setup.getSpaceInformation()
         self.space_information = si
-        self.checker = CoupledChecker(problem, self.law, resolution=resolution)
+        self.checker = CoupledChecker(problem, self.law, resolution=resolution, padding=padding)
         self.validity_checker = CoupledValidityChecker(si, self.checker)
         self.motion_validator = CoupledMotionValidator(si, self.checker)
         self.simple_setup.setStateValidityChecker(self.validity_checker)
         si.setMotionValidator(self.motion_validator)
-        si.setStateValidityCheckingResolution(min(1.0, resolution / max(space.getMaximumExtent(), 1e-9)))
+        # Only OMPL's own interpolation reads this fraction (our validator has its own bound).
+        step = resolution / float(np.max(self.checker.motion_weights))
+        si.setStateValidityCheckingResolution(min(1.0, step / space.getMaximumExtent()))
 
         if not self.checker.is_valid(problem.start):
             pairs = self.checker.world.colliding_pairs(self.checker.full_q(problem.start))
@@ -163,7 +172,11 @@ class GraspPlanningSetup:
             return IKBiRRT(si, options)
         if key in OMPL_PLANNERS:
             if key in _OPTIMIZING:
-                self.simple_setup.setOptimizationObjective(ob.PathLengthOptimizationObjective(si))
+                # Path length, satisfied by any solution: optimising planners return their
+                # first exact solution instead of refining until the time limit.
+                objective = ob.PathLengthOptimizationObjective(si)
+                objective.setCostThreshold(ob.Cost(math.inf))
+                self.simple_setup.setOptimizationObjective(objective)
             return OMPL_PLANNERS[key](si)
         why = f" ({_UNSUPPORTED[key]})" if key in _UNSUPPORTED else ""
         raise ConfigError("planner", name, f"one of {list(PLANNERS)}{why}")
@@ -179,7 +192,7 @@ class GraspPlanningSetup:
         planner: str | ob.Planner = "ikbirrt",
         seed: int | None = None,
         simplify: bool = False,
-        simplify_time: float = 1.0,
+        simplify_rounds: int = 3,
     ) -> Plan:
         """Plan from the start to the grasp; the plan's hand follows the law everywhere.
 
@@ -191,9 +204,13 @@ class GraspPlanningSetup:
                 path). OMPL's own planners draw from OMPL's process-wide generator, which
                 only ``ompl.util.RNG.setSeed`` before any OMPL object fixes (the command
                 line does that).
-            simplify: Shortcut the path with OMPL's ``PathSimplifier`` (through the
-                coupled motion validator); the hand is then re-derived from the law.
-            simplify_time: Time budget of the simplification [s].
+            simplify: Shorten the path with OMPL's ``PathSimplifier`` (vertex reduction,
+                partial shortcuts, collapse of close vertices, through the coupled motion
+                validator); the hand is then re-derived from the law. The work is bounded
+                by rounds, not time, so that it is repeatable; its random draws come from
+                OMPL's process-wide generator (see ``seed``).
+            simplify_rounds: Rounds of simplification at most (stops early when a round
+                changes nothing).
 
         Raises:
             ConfigError: Bad time limit or planner name.
@@ -218,10 +235,11 @@ class GraspPlanningSetup:
         status = ss.solve(float(time_limit))
         solve_time = time.perf_counter() - started
         name = instance.getName()
+        status_text = status.getStatus().name.lower().replace("_", " ")
         if status != ob.PlannerStatus.EXACT_SOLUTION or not ss.haveExactSolutionPath():
-            raise PlanningFailed(status.getStatus().name.lower().replace("_", " "), name, time_limit)
+            raise PlanningFailed(status_text, name, time_limit)
         if simplify:
-            ss.simplifySolution(float(simplify_time))
+            self.simplify(ss.getSolutionPath(), simplify_rounds)
         dof = self.problem.robot.arm_idx.size
         waypoints = np.array([s[0:dof] for s in ss.getSolutionPath().getStates()])
         stats: dict[str, Any] = {
@@ -242,7 +260,7 @@ class GraspPlanningSetup:
         return Plan(
             path=path,
             waypoints=waypoints,
-            status=str(status),
+            status=status_text,
             planner=name,
             seed=seed,
             solve_time_s=solve_time,
@@ -251,6 +269,16 @@ class GraspPlanningSetup:
             start_palm_distance=self.checker.goal_distance.start_distance,
             stats=stats,
         )
+
+    def simplify(self, path: og.PathGeometric, rounds: int = 3) -> None:
+        """Shorten ``path`` in place with OMPL's ``PathSimplifier``, in bounded rounds."""
+        simplifier = og.PathSimplifier(self.space_information, self.goal_region)
+        for _ in range(rounds):
+            changed = simplifier.reduceVertices(path)
+            changed = simplifier.partialShortcutPath(path) or changed
+            changed = simplifier.collapseCloseVertices(path) or changed
+            if not changed:
+                break
 
     def densify(self, waypoints: np.ndarray) -> np.ndarray:
         """Full configurations along the waypoints at the checker's resolution, the hand

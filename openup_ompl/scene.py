@@ -13,7 +13,7 @@ import pinocchio as pin
 from openup_ompl import _toml
 from openup_ompl._resources import data_dir
 from openup_ompl.exceptions import ConfigError
-from openup_ompl.hand_law import HandLaw
+from openup_ompl.hand_law import DISTANCE_KINDS, HandLaw
 from openup_ompl.robot import Robot, find_robot_file, load_robot
 
 SHAPES = ("box", "cylinder", "sphere")
@@ -66,13 +66,15 @@ class Shape:
         """World placement of the shape's centre."""
         return pin.XYZQUATToSE3(self.pose)
 
-    def geometry(self) -> coal.CollisionGeometry:
-        """The Coal collision geometry of this shape, centred at its origin."""
+    def geometry(self, padding: float = 0.0) -> coal.CollisionGeometry:
+        """The Coal collision geometry of this shape, centred at its origin, grown by
+        ``padding`` [m] on every side (a superset of the shape's Minkowski sum with a
+        ball of that radius)."""
         if self.shape == "box":
-            return coal.Box(*self.size)  # type: ignore[misc]
+            return coal.Box(*(self.size + 2 * padding))  # type: ignore[operator]
         if self.shape == "sphere":
-            return coal.Sphere(self.radius)
-        return coal.Cylinder(self.radius, self.length)
+            return coal.Sphere(self.radius + padding)  # type: ignore[operator]
+        return coal.Cylinder(self.radius + padding, self.length + 2 * padding)  # type: ignore[operator]
 
     def moved(self, pose: np.ndarray) -> Shape:
         """The same shape at another pose (e.g. a perturbed object)."""
@@ -165,11 +167,14 @@ def load_scene(path: str | Path, robot: Robot | None = None) -> Problem:
         overrides["mga"] = _toml.number(hand["mga"], f"{where}: hand.mga", low=1e-9, high=1.0)
     if "rotation_weight" in hand:
         overrides["rotation_weight"] = _toml.number(hand["rotation_weight"], f"{where}: hand.rotation_weight", low=0.0)
-    for key in ("continuous", "distance"):
-        if key in hand:
-            overrides[key] = hand[key]
-    if "continuous" in overrides and not isinstance(overrides["continuous"], bool):
-        raise ConfigError(f"{where}: hand.continuous", overrides["continuous"], "true or false")
+    if "continuous" in hand:
+        if not isinstance(hand["continuous"], bool):
+            raise ConfigError(f"{where}: hand.continuous", hand["continuous"], "true or false")
+        overrides["continuous"] = hand["continuous"]
+    if "distance" in hand:
+        if hand["distance"] not in DISTANCE_KINDS:
+            raise ConfigError(f"{where}: hand.distance", hand["distance"], f"one of {DISTANCE_KINDS}")
+        overrides["distance"] = hand["distance"]
     law = robot.hand_law(**overrides)
     obstacles_raw = raw.get("obstacles", [])
     if not isinstance(obstacles_raw, list):

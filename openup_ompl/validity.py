@@ -15,12 +15,16 @@ import pinocchio as pin
 from ompl import base as ob
 
 from openup_ompl.collision import CollisionWorld, ThreadContext
+from openup_ompl.exceptions import ConfigError
 from openup_ompl.hand_law import GoalDistance, HandLaw
+from openup_ompl.motion_bound import motion_weights
 from openup_ompl.scene import Problem
 
-#: Default motion-check resolution: largest arm joint-space step [rad, Euclidean norm over
-#: the arm joints] between two consecutive checked states of a motion.
-DEFAULT_RESOLUTION = 0.015
+#: Default motion-check resolution [m]: the largest distance any point of the robot may
+#: move between two consecutive checked states of a motion (bounded as in
+#: :mod:`openup_ompl.motion_bound`). Obstacles and object are padded by half of it, which
+#: makes the check of a whole motion exact for the unpadded scene.
+DEFAULT_RESOLUTION = 0.006
 
 
 class CoupledChecker:
@@ -31,7 +35,9 @@ class CoupledChecker:
         problem: Robot, scene and grasp.
         law: The hand law (``problem.hand_law`` if omitted).
         world: A collision world to reuse (built from ``problem`` if omitted).
-        resolution: Motion-check resolution [rad] (see :data:`DEFAULT_RESOLUTION`).
+        resolution: Motion-check resolution [m] (see :data:`DEFAULT_RESOLUTION`).
+        padding: Margin [m] added around obstacles and object; ``None`` gives
+            ``resolution / 2``, the margin that makes motion checks exact.
 
     Attributes:
         states_checked: States checked so far (single and batched).
@@ -44,15 +50,17 @@ class CoupledChecker:
         law: HandLaw | None = None,
         world: CollisionWorld | None = None,
         resolution: float = DEFAULT_RESOLUTION,
+        padding: float | None = None,
     ) -> None:
         if not (math.isfinite(resolution) and resolution > 0):
-            from openup_ompl.exceptions import ConfigError
-
-            raise ConfigError("resolution", resolution, "a positive joint-space step [rad]")
+            raise ConfigError("resolution", resolution, "a positive distance [m]")
+        padding = resolution / 2 if padding is None else padding
+        if not (math.isfinite(padding) and padding >= 0):
+            raise ConfigError("padding", padding, "a distance >= 0 [m]")
         self.problem = problem
         self.robot = problem.robot
         self.law = problem.hand_law if law is None else law
-        self.world = CollisionWorld(problem) if world is None else world
+        self.world = CollisionWorld(problem, padding=padding) if world is None else world
         self.resolution = float(resolution)
         self._model = self.robot.model
         self._palm = self.robot.palm_frame_id
@@ -70,6 +78,9 @@ class CoupledChecker:
         self._translation_only = self.law.distance == "translation"
         self._goal = problem.grasp.translation.tolist()
         self._inv_start = 1.0 / self.goal_distance.start_distance
+        self.motion_weights = motion_weights(
+            self.robot, self.law, self.goal_distance.start_distance
+        )
         self.states_checked = 0
         self.motions_checked = 0
 
@@ -134,8 +145,9 @@ class CoupledChecker:
 
     # -- motions --------------------------------------------------------------------------
     def segment_count(self, a: np.ndarray, b: np.ndarray) -> int:
-        """Number of steps the motion ``a -> b`` is cut into at :attr:`resolution`."""
-        return max(1, math.ceil(float(np.linalg.norm(b - a)) / self.resolution))
+        """Number of steps the motion ``a -> b`` is cut into so that no robot point moves
+        more than :attr:`resolution` between checked states."""
+        return max(1, math.ceil(float(np.abs(b - a) @ self.motion_weights) / self.resolution))
 
     def interpolate(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Arm states checked along ``a -> b``, excluding ``a``, including ``b``: ``(n, dof)``."""

@@ -1,0 +1,103 @@
+"""How far any point of the robot can move along a straight arm motion.
+
+For a straight joint-space motion ``a -> b``, no point of the robot moves farther than
+``sum_i |b_i - a_i| * W_i`` [m]: a revolute joint turning by ``dq`` moves a point at most
+``dq`` times its distance to the joint origin, a prismatic joint moves it by ``dq``, and
+the moves add up along the chain (triangle inequality). ``W_i`` bounds that distance over
+every configuration from the URDF's link offsets, prismatic travel and each collision
+geometry's bounding sphere. The hand follows the law, so the finger joints move too: by
+at most ``|slope|`` times the change of ``d``, itself bounded through the palm's own move.
+
+Checking states no more than ``resolution`` apart in this bound, against obstacles padded
+by ``resolution / 2``, proves the whole motion collision-free with the unpadded
+obstacles (each point stays within ``resolution / 2`` of a checked position).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+from openup_ompl.hand_law import HandLaw
+from openup_ompl.robot import Robot
+
+_PRISMATIC = ("PX", "PY", "PZ", "PrismaticUnaligned")
+
+
+def _is_prismatic(joint: pin.JointModel) -> bool:
+    return any(joint.shortname().endswith(kind) for kind in _PRISMATIC)
+
+
+def _travel(model: pin.Model, joint_id: int) -> float:
+    """Largest offset [m] a prismatic joint can add (0 for revolute joints)."""
+    joint = model.joints[joint_id]
+    if not _is_prismatic(joint):
+        return 0.0
+    q = joint.idx_q
+    return float(max(abs(model.lowerPositionLimit[q]), abs(model.upperPositionLimit[q])))
+
+
+def _chain_length(model: pin.Model, ancestor: int, joint_id: int) -> float:
+    """Upper bound [m] on the distance from ``ancestor``'s origin to ``joint_id``'s origin."""
+    length = 0.0
+    while joint_id != ancestor:
+        length += float(np.linalg.norm(model.jointPlacements[joint_id].translation))
+        length += _travel(model, joint_id)
+        joint_id = model.parents[joint_id]
+    return length
+
+
+def joint_reach(robot: Robot, joint_id: int) -> float:
+    """Upper bound [m] on the distance from a joint's origin to any robot point it moves."""
+    model = robot.model
+    subtree = set(model.subtrees[joint_id])
+    reach = 0.0
+    for geometry in robot.collision_model.geometryObjects:
+        if geometry.parentJoint not in subtree:
+            continue
+        shape = geometry.geometry
+        shape.computeLocalAABB()
+        extent = (
+            float(np.linalg.norm(geometry.placement.translation))
+            + float(np.linalg.norm(shape.aabb_center))
+            + float(shape.aabb_radius)
+        )
+        reach = max(reach, _chain_length(model, joint_id, geometry.parentJoint) + _travel(model, geometry.parentJoint) + extent)
+    return reach
+
+
+def _joint_weight(robot: Robot, joint_id: int) -> float:
+    """Displacement [m] of the farthest moved point per unit of this joint's motion."""
+    return 1.0 if _is_prismatic(robot.model.joints[joint_id]) else joint_reach(robot, joint_id)
+
+
+def motion_weights(robot: Robot, law: HandLaw, start_distance: float) -> np.ndarray:
+    """Per-arm-joint weights ``W`` [m per joint unit] of the displacement bound.
+
+    Args:
+        robot: The robot.
+        law: The hand law (its slope bounds how fast the fingers move with ``d``).
+        start_distance: Algorithm 1's denominator [m].
+    """
+    model = robot.model
+    arm_ids = [model.getJointId(name) for name in robot.spec.arm_joints]
+    hand_ids = [model.getJointId(name) for name in robot.spec.hand_joints]
+    weights = np.array([_joint_weight(robot, j) for j in arm_ids])
+    if law.fixed is not None:
+        return weights
+    palm = model.frames[robot.palm_frame_id]
+    palm_offset = float(np.linalg.norm(palm.placement.translation))
+    palm_reach = np.array(
+        [
+            _chain_length(model, j, palm.parentJoint) + palm_offset
+            if palm.parentJoint in set(model.subtrees[j])
+            else 0.0
+            for j in arm_ids
+        ]
+    )
+    # |delta d| <= (palm displacement + rotation_weight * palm rotation) / start_distance.
+    rotation = law.rotation_weight if law.distance == "weighted" else 0.0
+    revolute = np.array([0.0 if _is_prismatic(model.joints[j]) else 1.0 for j in arm_ids])
+    d_rate = (palm_reach + rotation * revolute) / start_distance
+    hand_rate = float(np.sum(np.abs(law.low_slope) * [_joint_weight(robot, j) for j in hand_ids]))
+    return weights + hand_rate * d_rate

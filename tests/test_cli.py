@@ -1,0 +1,138 @@
+"""The command line (CONTRACT §6), run as ``python -m openup_ompl`` in a subprocess."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import openup_ompl as ou
+
+SCENE = str(ou.default_scene_path())
+
+
+def run_cli(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
+    """Run ``python -m openup_ompl ARGS`` in ``cwd`` and capture its output."""
+    return subprocess.run(
+        [sys.executable, "-m", "openup_ompl", *args],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=cwd,
+    )
+
+
+def assert_one_error_line(result: subprocess.CompletedProcess[str]) -> None:
+    """Non-zero exit with exactly one non-empty line on stderr, no traceback, no leaks."""
+    assert result.returncode != 0, result.stdout
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1, result.stderr
+    assert lines[0].strip()
+    assert "Traceback" not in result.stderr
+    assert "leaked" not in result.stderr
+
+
+BAD_ARGS = {
+    "missing scene": (["plan", "no_such_scene.toml"], "no_such_scene.toml"),
+    "u above 1": (["plan", SCENE, "--u", "2"], "--u"),
+    "unknown planner": (["plan", SCENE, "--planner", "nope"], "nope"),
+    "negative time": (["plan", SCENE, "--time", "-1"], "--time"),
+    "no command": ([], "command"),
+}
+
+
+@pytest.mark.parametrize(("args", "named"), BAD_ARGS.values(), ids=BAD_ARGS.keys())
+def test_bad_arguments_exit_with_one_error_line(tmp_path, args, named):
+    """Bad arguments exit non-zero with one stderr line naming what is wrong."""
+    result = run_cli(*args, cwd=tmp_path)
+    assert_one_error_line(result)
+    assert named in result.stderr
+
+
+def test_malformed_scene_exits_with_one_error_line(tmp_path, default_scene_text):
+    """A scene with a TOML syntax error exits non-zero with one line naming the file."""
+    scene = tmp_path / "broken.toml"
+    scene.write_text(default_scene_text.replace("u = 0.3", "u = "))
+    result = run_cli("plan", str(scene), cwd=tmp_path)
+    assert_one_error_line(result)
+    assert "broken.toml" in result.stderr
+    assert not list(tmp_path.glob("*.json"))
+
+
+def test_unknown_robot_in_scene_exits_with_one_error_line(tmp_path, default_scene_text):
+    """A scene naming an unknown robot exits non-zero with one line naming the robot."""
+    scene = tmp_path / "scene.toml"
+    scene.write_text(default_scene_text.replace('robot = "panda"', 'robot = "r2d2"'))
+    result = run_cli("plan", str(scene), cwd=tmp_path)
+    assert_one_error_line(result)
+    assert "r2d2" in result.stderr
+
+
+@pytest.fixture(scope="module")
+def planned(tmp_path_factory) -> tuple[subprocess.CompletedProcess[str], dict]:
+    """One `plan` run on the default scene, seed 3, written to a new subdirectory."""
+    cwd = tmp_path_factory.mktemp("plan")
+    result = run_cli("plan", SCENE, "--seed", "3", "--out", "tmp/plan.json", cwd=cwd)
+    assert result.returncode == 0, result.stderr
+    return result, json.loads((cwd / "tmp" / "plan.json").read_text())
+
+
+def test_plan_exits_zero_quietly(planned):
+    """`plan` on the default scene exits 0 with nothing on stderr (no nanobind leak notes)."""
+    result, _ = planned
+    assert result.stderr == ""
+    assert "plan written to" in result.stdout
+
+
+def test_plan_file_has_full_rows_starting_at_the_start(planned, panda):
+    """The plan file's rows are full q's (len(joint_names)) and the first row is the start."""
+    _, data = planned
+    assert data["format"] == "openup-plan/1"
+    assert data["seed"] == 3
+    names = data["robot"]["joint_names"]
+    assert names == panda.joint_names
+    path = np.array(data["path"])
+    assert path.ndim == 2 and path.shape[0] >= 2 and path.shape[1] == len(names)
+    start = ou.load_scene(SCENE, robot=panda).start
+    np.testing.assert_allclose(path[0, panda.arm_idx], start, atol=1e-12)
+
+
+def test_plan_file_hand_follows_the_law_at_the_ends(planned, panda):
+    """The hand is the law's plateau at the start (d = 1) and c at the grasp (d ~ 0)."""
+    _, data = planned
+    path = np.array(data["path"])
+    law = ou.load_scene(SCENE, robot=panda).hand_law
+    np.testing.assert_allclose(path[0, panda.hand_idx], law(1.0), atol=1e-12)
+    np.testing.assert_allclose(path[-1, panda.hand_idx], law.c, atol=1e-3)
+
+
+def test_plan_file_status_is_exact_solution(planned):
+    """The plan file's status reads "exact solution" as in CONTRACT §4."""
+    _, data = planned
+    assert data["status"] == "exact solution"
+
+
+def test_same_seed_gives_the_same_rrtconnect_path(tmp_path):
+    """Two rrtconnect runs with one seed write identical paths (OMPL's RNG is seeded)."""
+    paths = []
+    for run in ("a", "b"):
+        out = tmp_path / f"{run}.json"
+        args = ("plan", SCENE, "--seed", "7", "--planner", "rrtconnect", "--out", str(out))
+        result = run_cli(*args, cwd=tmp_path)
+        assert result.returncode == 0, result.stderr
+        paths.append(json.loads(out.read_text())["path"])
+    assert paths[0] == paths[1]
+
+
+def test_demo_writes_its_plan(tmp_path):
+    """`demo --out DIR --seed 1` writes DIR/plan.json, a plan of the default scene."""
+    result = run_cli("demo", "--out", "demo", "--seed", "1", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    data = json.loads((tmp_path / "demo" / "plan.json").read_text())
+    assert data["format"] == "openup-plan/1"
+    assert data["grasp_pose"] == [0.6, 0.0, 0.19, 1.0, 0.0, 0.0, 0.0]
+    assert len(data["path"]) >= 2

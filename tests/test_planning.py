@@ -1,0 +1,206 @@
+"""End-to-end planning: every plan is valid, re-checked independently from its plan file."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from ompl import util as ompl_util
+from recheck import recheck_plan
+
+import openup_ompl as oo
+
+SCENES = Path(__file__).resolve().parent / "scenes"
+SEEDS = range(20)
+
+ompl_util.setLogLevel(ompl_util.LOG_ERROR)
+
+
+@pytest.fixture(scope="module")
+def default_problem() -> oo.Problem:
+    return oo.load_scene(oo.default_scene_path())
+
+
+@pytest.fixture(scope="module")
+def default_setup(default_problem: oo.Problem) -> oo.GraspPlanningSetup:
+    return oo.GraspPlanningSetup(default_problem)
+
+
+def _check_plan_file(plan: oo.Plan, tmp_path: Path) -> None:
+    """Save, reload and re-check a plan: start, grasp pose, law, no collision."""
+    data = json.loads(plan.save(tmp_path / f"{plan.planner}-{plan.seed}.json").read_text())
+    result = recheck_plan(data)
+    assert result.start_error < 1e-9
+    assert result.colliding == [], f"segments {result.colliding} collide"
+    assert result.position_error <= 1e-3
+    assert result.rotation_error <= 1e-2
+    assert result.hand_error < 1e-9
+
+
+@pytest.mark.parametrize("planner", ["ikbirrt", "rrtconnect"])
+def test_default_scene_solved_on_19_of_20_seeds(
+    default_setup: oo.GraspPlanningSetup, planner: str, tmp_path: Path
+) -> None:
+    """Both planners solve the default scene on >= 19 of 20 seeds in 5 s; every plan re-checks."""
+    solved = 0
+    for seed in SEEDS:
+        try:
+            plan = default_setup.solve(time_limit=5.0, planner=planner, seed=seed)
+        except oo.PlanningFailed:
+            continue
+        solved += 1
+        _check_plan_file(plan, tmp_path)
+    assert solved >= 19
+
+
+def test_simplified_plan_rechecks(default_setup: oo.GraspPlanningSetup, tmp_path: Path) -> None:
+    """OMPL's simplifier keeps the plan valid; the hand is re-derived from the law."""
+    plan = default_setup.solve(time_limit=5.0, planner="ikbirrt", seed=4, simplify=True)
+    _check_plan_file(plan, tmp_path)
+
+
+def test_same_seed_same_path(default_setup: oo.GraspPlanningSetup) -> None:
+    """IKBiRRT with the same seed returns the same path; another seed another path."""
+    first = default_setup.solve(planner="ikbirrt", seed=7).path
+    again = default_setup.solve(planner="ikbirrt", seed=7).path
+    other = default_setup.solve(planner="ikbirrt", seed=8).path
+    np.testing.assert_array_equal(first, again)
+    assert first.shape != other.shape or not np.array_equal(first, other)
+
+
+def test_hand_follows_law_along_plan(default_setup: oo.GraspPlanningSetup) -> None:
+    """The plan's hand is c at the grasp and the law's value at every state."""
+    plan = default_setup.solve(planner="ikbirrt", seed=2)
+    law = default_setup.law
+    np.testing.assert_allclose(plan.hand_path[-1], law(0.0), atol=1e-6)
+    np.testing.assert_allclose(plan.hand_path[0], law(1.0))
+    for row in plan.path[:: max(1, len(plan.path) // 20)]:
+        arm = row[default_setup.problem.robot.arm_idx]
+        np.testing.assert_allclose(
+            row[default_setup.problem.robot.hand_idx], law(default_setup.checker.distance(arm))
+        )
+
+
+def test_coupling_matters(tmp_path: Path) -> None:
+    """A slot fits the fingers only near c: solvable with the law, not with the hand frozen at w."""
+    problem = oo.load_scene(SCENES / "panda_slot.toml")
+    plan = oo.GraspPlanningSetup(problem).solve(planner="ikbirrt", seed=0)
+    _check_plan_file(plan, tmp_path)
+    with pytest.raises(oo.UnreachableGrasp) as error:
+        oo.GraspPlanningSetup(problem, fixed_hand="w")
+    assert error.value.in_collision > 0
+
+
+@pytest.mark.parametrize("planner", ["rrt", "rrtstar", "bitstar", "kpiece1", "bkpiece1"])
+def test_other_ompl_planners_use_ik_goal_region(
+    default_setup: oo.GraspPlanningSetup, planner: str, tmp_path: Path
+) -> None:
+    """OMPL planners that take sampleable goals plan with the IK goal region."""
+    plan = default_setup.solve(time_limit=10.0, planner=planner, seed=1)
+    _check_plan_file(plan, tmp_path)
+
+
+def test_unsupported_planner_is_a_typed_error(default_setup: oo.GraspPlanningSetup) -> None:
+    """PRM (deadlocks on Python goals) and unknown names raise ConfigError naming them."""
+    for name in ("prm", "aorrtc", "nope"):
+        with pytest.raises(oo.ConfigError, match=name):
+            default_setup.solve(planner=name)
+
+
+def test_timeout_reports_ompl_status(default_setup: oo.GraspPlanningSetup) -> None:
+    """A planner out of time raises PlanningFailed carrying OMPL's status."""
+    with pytest.raises(oo.PlanningFailed) as error:
+        default_setup.solve(time_limit=1e-4, planner="ikbirrt", seed=0)
+    assert error.value.status == "timeout"
+
+
+def _scene(tmp_path: Path, **changes: str) -> Path:
+    text = oo.default_scene_path().read_text()
+    for old, new in changes.items():
+        assert old in text
+        text = text.replace(old, new)
+    path = tmp_path / "scene.toml"
+    path.write_text(text)
+    return path
+
+
+def test_start_in_collision_is_rejected(tmp_path: Path) -> None:
+    """A start inside an obstacle raises InvalidProblem naming the colliding pair."""
+    path = _scene(
+        tmp_path,
+        **{
+            "start = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785]": "start = [0.0, 1.7, 0.0, -0.3, 0.0, 1.571, 0.785]"
+        },
+    )
+    with pytest.raises(oo.InvalidProblem, match="collision"):
+        oo.GraspPlanningSetup(oo.load_scene(path))
+
+
+def test_unreachable_grasp_is_rejected(tmp_path: Path) -> None:
+    """A grasp pose out of reach raises UnreachableGrasp with no colliding solution."""
+    path = _scene(
+        tmp_path,
+        **{
+            "pose = [0.6, 0.0, 0.19, 1.0, 0.0, 0.0, 0.0]": "pose = [2.5, 0.0, 0.19, 1.0, 0.0, 0.0, 0.0]"
+        },
+    )
+    with pytest.raises(oo.UnreachableGrasp) as error:
+        oo.GraspPlanningSetup(oo.load_scene(path))
+    assert error.value.in_collision == 0
+
+
+def test_grasp_inside_table_is_rejected(tmp_path: Path) -> None:
+    """A grasp pose reachable only in collision raises UnreachableGrasp saying so."""
+    path = _scene(
+        tmp_path,
+        **{
+            "pose = [0.6, 0.0, 0.19, 1.0, 0.0, 0.0, 0.0]": "pose = [0.6, 0.3, 0.05, 1.0, 0.0, 0.0, 0.0]"
+        },
+    )
+    with pytest.raises(oo.UnreachableGrasp, match="only in collision"):
+        oo.GraspPlanningSetup(oo.load_scene(path))
+
+
+def test_start_at_goal_is_rejected(default_problem: oo.Problem, tmp_path: Path) -> None:
+    """A start whose palm is already on the grasp pose raises InvalidProblem."""
+    robot = default_problem.robot
+    placement = robot.palm_placement(
+        robot.model.createData(), robot.full_q(default_problem.start, default_problem.hand_law(1.0))
+    )
+    pose = ", ".join(f"{x:.12f}" for x in pin.SE3ToXYZQUAT(placement))
+    path = _scene(tmp_path, **{"pose = [0.6, 0.0, 0.19, 1.0, 0.0, 0.0, 0.0]": f"pose = [{pose}]"})
+    with pytest.raises(oo.OpenUpError, match="start"):
+        oo.GraspPlanningSetup(oo.load_scene(path))
+
+
+def test_plan_file_follows_contract(default_setup: oo.GraspPlanningSetup, tmp_path: Path) -> None:
+    """The plan file has the CONTRACT's keys, and read_plan accepts it."""
+    plan = default_setup.solve(planner="ikbirrt", seed=5)
+    data = oo.read_plan(plan.save(tmp_path / "plan.json"))
+    for key in (
+        "format",
+        "status",
+        "planner",
+        "seed",
+        "solve_time_s",
+        "robot",
+        "scene",
+        "grasp_pose",
+        "hand_law",
+        "path",
+    ):
+        assert key in data
+    assert data["status"] == "exact solution"
+    assert data["hand_law"]["start_palm_distance"] == pytest.approx(
+        default_setup.checker.goal_distance.start_distance
+    )
+    assert data["scene"]["object"]["name"] == "can"
+    assert [o["name"] for o in data["scene"]["obstacles"]] == ["table", "wall"]
+    assert (
+        len(data["path"][0])
+        == len(data["robot"]["joint_names"])
+        == default_setup.problem.robot.model.nq
+    )
