@@ -60,13 +60,32 @@ def build_parser() -> argparse.ArgumentParser:
     commands = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     def planning_options(sub: argparse.ArgumentParser, default_time: float) -> None:
-        sub.add_argument("--u", type=_unit_float, default=None, help="pose uncertainty in [0, 1] (default: the scene's)")
-        sub.add_argument("--planner", default="ikbirrt", choices=PLANNERS, metavar="NAME",
-                         help=f"one of {', '.join(PLANNERS)} (default: ikbirrt)")
-        sub.add_argument("--time", type=_positive_float, default=default_time, help="planning time limit [s]")
-        sub.add_argument("--seed", type=_seed, default=None, help="random seed (default: drawn, and written in the plan)")
+        sub.add_argument(
+            "--u",
+            type=_unit_float,
+            default=None,
+            help="pose uncertainty in [0, 1] (default: the scene's)",
+        )
+        sub.add_argument(
+            "--planner",
+            default="ikbirrt",
+            choices=PLANNERS,
+            metavar="NAME",
+            help=f"one of {', '.join(PLANNERS)} (default: ikbirrt)",
+        )
+        sub.add_argument(
+            "--time", type=_positive_float, default=default_time, help="planning time limit [s]"
+        )
+        sub.add_argument(
+            "--seed",
+            type=_seed,
+            default=None,
+            help="random seed (default: drawn, and written in the plan)",
+        )
         sub.add_argument("--no-simplify", action="store_true", help="keep the planner's raw path")
-        sub.add_argument("--continuous", action="store_true", help="use the hand law without the jump at mga")
+        sub.add_argument(
+            "--continuous", action="store_true", help="use the hand law without the jump at mga"
+        )
 
     plan = commands.add_parser("plan", help="plan a scene file and write the plan file")
     plan.add_argument("scene", type=Path, help="scene TOML (CONTRACT section 3)")

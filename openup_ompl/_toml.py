@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-import tomllib
+import sys
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -11,6 +11,11 @@ from typing import Any
 import numpy as np
 
 from openup_ompl.exceptions import ConfigError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
 
 
 def read_toml(path: Path, what: str) -> dict[str, Any]:
@@ -42,7 +47,11 @@ def number(value: Any, where: str, *, low: float | None = None, high: float | No
     ok = isinstance(value, (int, float)) and not isinstance(value, bool)
     if ok:
         value = float(value)
-        ok = math.isfinite(value) and (low is None or value >= low) and (high is None or value <= high)
+        ok = (
+            math.isfinite(value)
+            and (low is None or value >= low)
+            and (high is None or value <= high)
+        )
     if not ok:
         span = f" in [{low}, {high}]" if low is not None or high is not None else ""
         raise ConfigError(where, value, f"a finite number{span}")

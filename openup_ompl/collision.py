@@ -11,6 +11,7 @@ from __future__ import annotations
 import os
 import threading
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -21,8 +22,8 @@ from openup_ompl.scene import Problem, Shape
 # for single configurations of robots with a few dozen geometries: 6.5 us against 14 us for
 # the dynamic AABB tree and 39 us for Pinocchio's pair loop on the Panda scene. Batches go
 # through the dynamic AABB tree pool, the only pool Pinocchio binds.
-_Manager = pin.BroadPhaseManager_NaiveCollisionManager
-_ManagerPool = pin.BroadPhaseManagerPool_DynamicAABBTreeCollisionManager
+_Manager: Any = pin.BroadPhaseManager_NaiveCollisionManager
+_ManagerPool: Any = pin.BroadPhaseManagerPool_DynamicAABBTreeCollisionManager
 
 
 @dataclass
@@ -31,7 +32,7 @@ class ThreadContext:
 
     data: pin.Data
     geometry_data: pin.GeometryData
-    manager: _Manager
+    manager: Any
     q: np.ndarray
     hand: np.ndarray
 
@@ -83,7 +84,7 @@ class CollisionWorld:
         self.geometry_model = build_collision_model(problem, environment, self.padding)
         self.num_threads = max(1, num_threads or os.cpu_count() or 1)
         self._local = threading.local()
-        self._pool: _ManagerPool | None = None
+        self._pool: Any = None
         self._pool_lock = threading.Lock()
 
     def context(self) -> ThreadContext:
@@ -116,7 +117,9 @@ class CollisionWorld:
             if self._pool is None:
                 self._pool = _ManagerPool(self.model, self.geometry_model, self.num_threads)
             return np.asarray(
-                pin.computeCollisionsInParallel(self.num_threads, self._pool, qs, True, stop_at_first),
+                pin.computeCollisionsInParallel(
+                    self.num_threads, self._pool, qs, True, stop_at_first
+                ),
                 dtype=bool,
             )
 
@@ -128,6 +131,8 @@ class CollisionWorld:
         names = [g.name for g in self.geometry_model.geometryObjects]
         return [
             (names[pair.first], names[pair.second])
-            for pair, result in zip(self.geometry_model.collisionPairs, geometry_data.collisionResults)
+            for pair, result in zip(
+                self.geometry_model.collisionPairs, geometry_data.collisionResults, strict=True
+            )
             if result.isCollision()
         ]

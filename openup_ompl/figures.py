@@ -57,7 +57,9 @@ def plot_hand_law(plan: Plan, distances: np.ndarray, out: str | Path) -> Path:
     for value, label in ((law.c, "c"), (law.b, "b"), (law.w, "w")):
         for axis in (left, right):
             axis.axhline(float(np.mean(value)), ls=":", color="grey", lw=0.8)
-            axis.text(axis.get_xlim()[1], float(np.mean(value)), f" {label}", va="center", fontsize=8)
+            axis.text(
+                axis.get_xlim()[1], float(np.mean(value)), f" {label}", va="center", fontsize=8
+            )
     left.axvline(law.mga, ls="--", color="k", lw=0.8)
     left.text(law.mga, left.get_ylim()[1], " mga", va="top", fontsize=8)
     left.set_xlabel("normalised palm-to-grasp distance d")

@@ -23,7 +23,7 @@ DISTANCE_KINDS = ("translation", "weighted")
 
 def _check_unit(name: str, value: float, *, low_open: bool = False) -> float:
     value = float(value)
-    ok = math.isfinite(value) and (0.0 < value if low_open else 0.0 <= value) and value <= 1.0
+    ok = math.isfinite(value) and (value > 0.0 if low_open else value >= 0.0) and value <= 1.0
     if not ok:
         raise ConfigError(name, value, "a number in (0, 1]" if low_open else "a number in [0, 1]")
     return value
@@ -159,14 +159,15 @@ class HandLaw:
         ends = np.stack([c, c + self.mga * slope])
         clip_low = bool(np.any(ends < lower) or np.any(ends > upper))
         fixed_clipped = None if self.fixed is None else np.clip(self.fixed, lower, upper)
-        for name, value in (
+        derived: tuple[tuple[str, np.ndarray | None], ...] = (
             ("low_slope", slope),
             ("high", np.clip(b + (w - b) * self.u, lower, upper)),
             ("fixed_clipped", fixed_clipped),
-        ):
-            if value is not None:
-                value.flags.writeable = False
-            object.__setattr__(self, name, value)
+        )
+        for name, item in derived:
+            if item is not None:
+                item.flags.writeable = False
+            object.__setattr__(self, name, item)
         object.__setattr__(self, "clip_low", clip_low)
 
     @property
@@ -195,8 +196,17 @@ class HandLaw:
         fields = {
             name: getattr(self, name)
             for name in (
-                "c", "b", "w", "u", "mga", "lower", "upper", "continuous", "distance",
-                "rotation_weight", "fixed",
+                "c",
+                "b",
+                "w",
+                "u",
+                "mga",
+                "lower",
+                "upper",
+                "continuous",
+                "distance",
+                "rotation_weight",
+                "fixed",
             )
         }
         fields.update(changes)

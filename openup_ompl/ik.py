@@ -105,7 +105,9 @@ class IKSolver:
             x = np.clip(x + options.step * step, self._lower, self._upper)
         return None
 
-    def solve(self, rng: np.random.Generator, seed_arm: np.ndarray | None = None) -> np.ndarray | None:
+    def solve(
+        self, rng: np.random.Generator, seed_arm: np.ndarray | None = None
+    ) -> np.ndarray | None:
         """Up to ``max_restarts`` refinements (the first from ``seed_arm`` if given)."""
         for attempt in range(self.options.max_restarts):
             if attempt == 0 and seed_arm is not None:

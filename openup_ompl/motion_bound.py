@@ -62,7 +62,12 @@ def joint_reach(robot: Robot, joint_id: int) -> float:
             + float(np.linalg.norm(shape.aabb_center))
             + float(shape.aabb_radius)
         )
-        reach = max(reach, _chain_length(model, joint_id, geometry.parentJoint) + _travel(model, geometry.parentJoint) + extent)
+        reach = max(
+            reach,
+            _chain_length(model, joint_id, geometry.parentJoint)
+            + _travel(model, geometry.parentJoint)
+            + extent,
+        )
     return reach
 
 

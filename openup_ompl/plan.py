@@ -113,10 +113,18 @@ def read_plan(path: str | Path) -> dict[str, Any]:
     except (OSError, json.JSONDecodeError) as error:
         raise ConfigError("plan file", str(path), f"a readable JSON plan ({error})") from None
     if not isinstance(data, dict) or data.get("format") != PLAN_FORMAT:
-        raise ConfigError(f"{path.name}: format", data.get("format") if isinstance(data, dict) else data, PLAN_FORMAT)
+        raise ConfigError(
+            f"{path.name}: format",
+            data.get("format") if isinstance(data, dict) else data,
+            PLAN_FORMAT,
+        )
     rows = data.get("path")
     names = data.get("robot", {}).get("joint_names", [])
-    if not (isinstance(rows, list) and rows and all(isinstance(r, list) and len(r) == len(names) for r in rows)):
+    if not (
+        isinstance(rows, list)
+        and rows
+        and all(isinstance(r, list) and len(r) == len(names) for r in rows)
+    ):
         raise ConfigError(f"{path.name}: path", "malformed", f"rows of {len(names)} joint values")
     if not all(math.isfinite(x) for row in rows for x in row):
         raise ConfigError(f"{path.name}: path", "non-finite values", "finite joint values")

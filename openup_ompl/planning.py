@@ -116,18 +116,14 @@ class GraspPlanningSetup:
         self.problem = problem
         robot = problem.robot
         self.law = problem.hand_law.with_options(
-            **{
-                k: v
-                for k, v in (("u", u), ("continuous", continuous))
-                if v is not None
-            },
+            **{k: v for k, v in (("u", u), ("continuous", continuous)) if v is not None},
             fixed=_hand_override(fixed_hand, problem.hand_law),
         )
         self.ikbirrt_options = ikbirrt_options or IKBiRRTOptions()
         dof = robot.arm_idx.size
         space = ob.RealVectorStateSpace(dof)
         bounds = ob.RealVectorBounds(dof)
-        for i, (low, high) in enumerate(zip(robot.arm_lower, robot.arm_upper)):
+        for i, (low, high) in enumerate(zip(robot.arm_lower, robot.arm_upper, strict=True)):
             bounds.setLow(i, float(low))
             bounds.setHigh(i, float(high))
         space.setBounds(bounds)
@@ -146,7 +142,9 @@ class GraspPlanningSetup:
 
         if not self.checker.is_valid(problem.start):
             pairs = self.checker.world.colliding_pairs(self.checker.full_q(problem.start))
-            raise InvalidProblem(f"start configuration {problem.start.tolist()} is in collision: {pairs}")
+            raise InvalidProblem(
+                f"start configuration {problem.start.tolist()} is in collision: {pairs}"
+            )
         start = si.allocState()
         start[0:dof] = problem.start.tolist()
         self.simple_setup.setStartState(start)
@@ -216,7 +214,9 @@ class GraspPlanningSetup:
             ConfigError: Bad time limit or planner name.
             PlanningFailed: No exact solution in time (the message gives OMPL's status).
         """
-        if not (isinstance(time_limit, (int, float)) and math.isfinite(time_limit) and time_limit > 0):
+        if not (
+            isinstance(time_limit, (int, float)) and math.isfinite(time_limit) and time_limit > 0
+        ):
             raise ConfigError("time_limit", time_limit, "a positive number of seconds")
         ss = self.simple_setup
         if isinstance(planner, ob.Planner):
@@ -284,7 +284,7 @@ class GraspPlanningSetup:
         """Full configurations along the waypoints at the checker's resolution, the hand
         from the law at every row: ``(N, nq)``."""
         arms = [waypoints[:1]]
-        for a, b in zip(waypoints[:-1], waypoints[1:]):
+        for a, b in zip(waypoints[:-1], waypoints[1:], strict=True):
             arms.append(self.checker.interpolate(a, b))
         return self.checker.full_qs(np.concatenate(arms)).T.copy()
 
@@ -302,6 +302,10 @@ class GraspPlanningSetup:
         distance = self.goal.distance(arms[-1])
         if distance > GOAL_THRESHOLD:
             raise PlanningFailed(f"path ends {distance:.2e} m from the grasp pose", "verify", 0.0)
-        flags = self.checker.world.batch_in_collision(np.asfortranarray(path.T), stop_at_first=False)
+        flags = self.checker.world.batch_in_collision(
+            np.asfortranarray(path.T), stop_at_first=False
+        )
         if np.any(flags):
-            raise PlanningFailed(f"path row {int(np.flatnonzero(flags)[0])} collides", "verify", 0.0)
+            raise PlanningFailed(
+                f"path row {int(np.flatnonzero(flags)[0])} collides", "verify", 0.0
+            )

@@ -92,7 +92,9 @@ class RobotSpec:
             srdf=None
             if srdf is None
             else resolve_path(_toml.string(srdf, f"{where}: srdf"), path.parent, f"{where}: srdf"),
-            palm_frame=_toml.string(_toml.require(raw, "palm_frame", where), f"{where}: palm_frame"),
+            palm_frame=_toml.string(
+                _toml.require(raw, "palm_frame", where), f"{where}: palm_frame"
+            ),
             arm_joints=tuple(arm),
             hand_joints=tuple(hand),
             home=_toml.vector(_toml.require(raw, "home", where), f"{where}: home", len(arm)),
@@ -100,7 +102,10 @@ class RobotSpec:
             b=_toml.vector(_toml.require(table, "b", f"{where}: hand"), f"{where}: hand.b", n),
             w=_toml.vector(_toml.require(table, "w", f"{where}: hand"), f"{where}: hand.w", n),
             mga=_toml.number(
-                _toml.require(table, "mga", f"{where}: hand"), f"{where}: hand.mga", low=1e-9, high=1.0
+                _toml.require(table, "mga", f"{where}: hand"),
+                f"{where}: hand.mga",
+                low=1e-9,
+                high=1.0,
             ),
             u=_toml.number(table.get("u", 0.0), f"{where}: hand.u", low=0.0, high=1.0),
             convex=convex,
@@ -123,7 +128,7 @@ def find_robot_file(name_or_path: str | Path, relative_to: Path | None = None) -
         path = relative_to / path
     if path.suffix == ".toml" and path.is_file():
         return path.resolve()
-    raise RobotNotFound(text, robots)
+    raise RobotNotFound(text, list(robots))
 
 
 @dataclass(eq=False)
@@ -277,7 +282,9 @@ def load_robot(name_or_path: str | Path = "panda") -> Robot:
                 model, str(spec.urdf), pin.COLLISION, package_dirs=package_dirs
             )
     except (RuntimeError, ValueError) as error:
-        raise ConfigError(f"{spec.path.name}: urdf", str(spec.urdf), f"a loadable URDF ({error})") from None
+        raise ConfigError(
+            f"{spec.path.name}: urdf", str(spec.urdf), f"a loadable URDF ({error})"
+        ) from None
     if spec.convex:
         _convex_hulls(collision)
     collision.addAllCollisionPairs()

@@ -71,15 +71,25 @@ class Shape:
         ``padding`` [m] on every side (a superset of the shape's Minkowski sum with a
         ball of that radius)."""
         if self.shape == "box":
-            return coal.Box(*(self.size + 2 * padding))  # type: ignore[operator]
+            assert self.size is not None
+            return coal.Box(*(float(x) + 2 * padding for x in self.size))
+        assert self.radius is not None
         if self.shape == "sphere":
-            return coal.Sphere(self.radius + padding)  # type: ignore[operator]
-        return coal.Cylinder(self.radius + padding, self.length + 2 * padding)  # type: ignore[operator]
+            return coal.Sphere(self.radius + padding)
+        assert self.length is not None
+        return coal.Cylinder(self.radius + padding, self.length + 2 * padding)
 
     def moved(self, pose: np.ndarray) -> Shape:
         """The same shape at another pose (e.g. a perturbed object)."""
-        return Shape(self.name, self.shape, np.asarray(pose, float), self.size, self.radius,
-                     self.length, {**self.raw, "pose": list(map(float, pose))})
+        return Shape(
+            self.name,
+            self.shape,
+            np.asarray(pose, float),
+            self.size,
+            self.radius,
+            self.length,
+            {**self.raw, "pose": list(map(float, pose))},
+        )
 
 
 @dataclass(eq=False)
@@ -155,7 +165,9 @@ def load_scene(path: str | Path, robot: Robot | None = None) -> Problem:
     known = {"c", "b", "w", "u", "mga", "continuous", "distance", "rotation_weight"}
     unknown = sorted(set(hand) - known)
     if unknown:
-        raise ConfigError(f"{where}: hand.{unknown[0]}", hand[unknown[0]], f"one of {sorted(known)}")
+        raise ConfigError(
+            f"{where}: hand.{unknown[0]}", hand[unknown[0]], f"one of {sorted(known)}"
+        )
     n = robot.hand_idx.size
     overrides: dict[str, object] = {}
     for key in ("c", "b", "w"):
@@ -166,20 +178,26 @@ def load_scene(path: str | Path, robot: Robot | None = None) -> Problem:
     if "mga" in hand:
         overrides["mga"] = _toml.number(hand["mga"], f"{where}: hand.mga", low=1e-9, high=1.0)
     if "rotation_weight" in hand:
-        overrides["rotation_weight"] = _toml.number(hand["rotation_weight"], f"{where}: hand.rotation_weight", low=0.0)
+        overrides["rotation_weight"] = _toml.number(
+            hand["rotation_weight"], f"{where}: hand.rotation_weight", low=0.0
+        )
     if "continuous" in hand:
         if not isinstance(hand["continuous"], bool):
             raise ConfigError(f"{where}: hand.continuous", hand["continuous"], "true or false")
         overrides["continuous"] = hand["continuous"]
     if "distance" in hand:
         if hand["distance"] not in DISTANCE_KINDS:
-            raise ConfigError(f"{where}: hand.distance", hand["distance"], f"one of {DISTANCE_KINDS}")
+            raise ConfigError(
+                f"{where}: hand.distance", hand["distance"], f"one of {DISTANCE_KINDS}"
+            )
         overrides["distance"] = hand["distance"]
     law = robot.hand_law(**overrides)
     obstacles_raw = raw.get("obstacles", [])
     if not isinstance(obstacles_raw, list):
         raise ConfigError(f"{where}: obstacles", obstacles_raw, "an array of [[obstacles]] tables")
-    obstacles = [Shape.from_table(t, f"{where}: obstacles[{i}]") for i, t in enumerate(obstacles_raw)]
+    obstacles = [
+        Shape.from_table(t, f"{where}: obstacles[{i}]") for i, t in enumerate(obstacles_raw)
+    ]
     obj = Shape.from_table(raw["object"], f"{where}: object") if "object" in raw else None
     names = [shape.name for shape in obstacles] + ([obj.name] if obj else [])
     duplicate = next((n for n in names if names.count(n) > 1), None)

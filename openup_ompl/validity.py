@@ -136,7 +136,9 @@ class CoupledChecker:
         self.states_checked += 1
         context = self.world.context()
         self._fill(context, arm)
-        return not pin.computeCollisions(self._model, context.data, context.manager, context.q, True)
+        return not pin.computeCollisions(
+            self._model, context.data, context.manager, context.q, True
+        )
 
     def is_valid_with_hand(self, arm: np.ndarray, hand: np.ndarray) -> bool:
         """Whether the arm configuration with the given hand is collision-free."""

@@ -117,11 +117,15 @@ def test_timeout_reports_ompl_status(default_setup: oo.GraspPlanningSetup) -> No
     assert error.value.status == "timeout"
 
 
-def _scene(tmp_path: Path, **changes: str) -> Path:
+START = "start = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785]"
+GRASP = "pose = [0.6, 0.0, 0.19, 1.0, 0.0, 0.0, 0.0]"
+
+
+def _scene(tmp_path: Path, old: str, new: str) -> Path:
+    """The default scene with one line replaced, written to ``tmp_path``."""
     text = oo.default_scene_path().read_text()
-    for old, new in changes.items():
-        assert old in text
-        text = text.replace(old, new)
+    assert old in text
+    text = text.replace(old, new)
     path = tmp_path / "scene.toml"
     path.write_text(text)
     return path
@@ -129,24 +133,14 @@ def _scene(tmp_path: Path, **changes: str) -> Path:
 
 def test_start_in_collision_is_rejected(tmp_path: Path) -> None:
     """A start inside an obstacle raises InvalidProblem naming the colliding pair."""
-    path = _scene(
-        tmp_path,
-        **{
-            "start = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785]": "start = [0.0, 1.7, 0.0, -0.3, 0.0, 1.571, 0.785]"
-        },
-    )
+    path = _scene(tmp_path, START, "start = [0.0, 1.7, 0.0, -0.3, 0.0, 1.571, 0.785]")
     with pytest.raises(oo.InvalidProblem, match="collision"):
         oo.GraspPlanningSetup(oo.load_scene(path))
 
 
 def test_unreachable_grasp_is_rejected(tmp_path: Path) -> None:
     """A grasp pose out of reach raises UnreachableGrasp with no colliding solution."""
-    path = _scene(
-        tmp_path,
-        **{
-            "pose = [0.6, 0.0, 0.19, 1.0, 0.0, 0.0, 0.0]": "pose = [2.5, 0.0, 0.19, 1.0, 0.0, 0.0, 0.0]"
-        },
-    )
+    path = _scene(tmp_path, GRASP, "pose = [2.5, 0.0, 0.19, 1.0, 0.0, 0.0, 0.0]")
     with pytest.raises(oo.UnreachableGrasp) as error:
         oo.GraspPlanningSetup(oo.load_scene(path))
     assert error.value.in_collision == 0
@@ -154,12 +148,7 @@ def test_unreachable_grasp_is_rejected(tmp_path: Path) -> None:
 
 def test_grasp_inside_table_is_rejected(tmp_path: Path) -> None:
     """A grasp pose reachable only in collision raises UnreachableGrasp saying so."""
-    path = _scene(
-        tmp_path,
-        **{
-            "pose = [0.6, 0.0, 0.19, 1.0, 0.0, 0.0, 0.0]": "pose = [0.6, 0.3, 0.05, 1.0, 0.0, 0.0, 0.0]"
-        },
-    )
+    path = _scene(tmp_path, GRASP, "pose = [0.6, 0.3, 0.05, 1.0, 0.0, 0.0, 0.0]")
     with pytest.raises(oo.UnreachableGrasp, match="only in collision"):
         oo.GraspPlanningSetup(oo.load_scene(path))
 
@@ -171,7 +160,7 @@ def test_start_at_goal_is_rejected(default_problem: oo.Problem, tmp_path: Path) 
         robot.model.createData(), robot.full_q(default_problem.start, default_problem.hand_law(1.0))
     )
     pose = ", ".join(f"{x:.12f}" for x in pin.SE3ToXYZQUAT(placement))
-    path = _scene(tmp_path, **{"pose = [0.6, 0.0, 0.19, 1.0, 0.0, 0.0, 0.0]": f"pose = [{pose}]"})
+    path = _scene(tmp_path, GRASP, f"pose = [{pose}]")
     with pytest.raises(oo.OpenUpError, match="start"):
         oo.GraspPlanningSetup(oo.load_scene(path))
 

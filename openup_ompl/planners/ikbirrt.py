@@ -45,7 +45,9 @@ class IKBiRRTOptions:
         if not (math.isfinite(self.max_step) and self.max_step > 0):
             raise ConfigError("IKBiRRTOptions.max_step", self.max_step, "a positive step [rad]")
         if not (0.0 <= self.p_sample_goal <= 1.0):
-            raise ConfigError("IKBiRRTOptions.p_sample_goal", self.p_sample_goal, "a probability in [0, 1]")
+            raise ConfigError(
+                "IKBiRRTOptions.p_sample_goal", self.p_sample_goal, "a probability in [0, 1]"
+            )
         if not (isinstance(self.goal_restarts, int) and self.goal_restarts >= 1):
             raise ConfigError("IKBiRRTOptions.goal_restarts", self.goal_restarts, "an integer >= 1")
 
