@@ -13,7 +13,7 @@ the reference's time on the same seed), and means over successful runs of waypoi
 joint-space path length (sum of the norms of the steps of ``plan.arm_path``), and
 ``plan.stats`` (state checks, IK calls).
 
-Run (about 1 min on 2 cores when the machine is idle)::
+Run (about 20 s on 2 idle cores; at worst seeds x variants x time limit)::
 
     python benchmarks/bench_planning.py
     python benchmarks/bench_planning.py --seeds 20 --time-limit 5 \

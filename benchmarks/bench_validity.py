@@ -21,7 +21,7 @@ Every measured variant runs in each of several interleaved rounds (order rotated
 round, GC off); the tables give medians over rounds, so ratios come from one process run
 on one (possibly noisy) machine.
 
-Run (about 15 s on 2 idle cores; up to a minute when another process keeps a core busy,
+Run (about 25 s on 2 idle cores; about 45 s when another process keeps a core busy,
 as the 2-thread batches then stall)::
 
     python benchmarks/bench_validity.py

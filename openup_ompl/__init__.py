@@ -5,6 +5,12 @@ the grasp (Huaman Quispe and Stilman, "Open Up!"); the arm is planned with OMPL,
 state checked with the hand the law gives, collisions by Coal through Pinocchio.
 """
 
+import os
+
+# Batched collision checks run on OpenMP threads; busy-waiting threads stall every batch
+# when another process holds a core. Takes effect if pinocchio is not yet imported.
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
 from openup_ompl.exceptions import (
     ConfigError,
     FrameNotFound,

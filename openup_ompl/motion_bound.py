@@ -76,6 +76,34 @@ def _joint_weight(robot: Robot, joint_id: int) -> float:
     return 1.0 if _is_prismatic(robot.model.joints[joint_id]) else joint_reach(robot, joint_id)
 
 
+def distance_rates(robot: Robot, law: HandLaw, start_distance: float) -> np.ndarray:
+    """Per-arm-joint Lipschitz constants of Algorithm 1's ``d`` [1 per joint unit]:
+    ``|d(q) - d(q')| <= sum_i |q_i - q'_i| * rate_i`` for any two arm configurations.
+
+    Args:
+        robot: The robot.
+        law: The hand law (its distance kind and rotation weight).
+        start_distance: Algorithm 1's denominator [m].
+    """
+    model = robot.model
+    arm_ids = [model.getJointId(name) for name in robot.spec.arm_joints]
+    palm = model.frames[robot.palm_frame_id]
+    palm_offset = float(np.linalg.norm(palm.placement.translation))
+    palm_reach = np.array(
+        [
+            _chain_length(model, j, palm.parentJoint) + palm_offset
+            if palm.parentJoint in set(model.subtrees[j])
+            else 0.0
+            for j in arm_ids
+        ]
+    )
+    # The palm moves by at most palm_reach per unit; with the weighted distance, each
+    # revolute joint also turns it by at most one radian per radian.
+    rotation = law.rotation_weight if law.distance == "weighted" else 0.0
+    revolute = np.array([0.0 if _is_prismatic(model.joints[j]) else 1.0 for j in arm_ids])
+    return (palm_reach + rotation * revolute) / start_distance
+
+
 def motion_weights(robot: Robot, law: HandLaw, start_distance: float) -> np.ndarray:
     """Per-arm-joint weights ``W`` [m per joint unit] of the displacement bound.
 
@@ -90,19 +118,5 @@ def motion_weights(robot: Robot, law: HandLaw, start_distance: float) -> np.ndar
     weights = np.array([_joint_weight(robot, j) for j in arm_ids])
     if law.fixed is not None:
         return weights
-    palm = model.frames[robot.palm_frame_id]
-    palm_offset = float(np.linalg.norm(palm.placement.translation))
-    palm_reach = np.array(
-        [
-            _chain_length(model, j, palm.parentJoint) + palm_offset
-            if palm.parentJoint in set(model.subtrees[j])
-            else 0.0
-            for j in arm_ids
-        ]
-    )
-    # |delta d| <= (palm displacement + rotation_weight * palm rotation) / start_distance.
-    rotation = law.rotation_weight if law.distance == "weighted" else 0.0
-    revolute = np.array([0.0 if _is_prismatic(model.joints[j]) else 1.0 for j in arm_ids])
-    d_rate = (palm_reach + rotation * revolute) / start_distance
     hand_rate = float(np.sum(np.abs(law.low_slope) * [_joint_weight(robot, j) for j in hand_ids]))
-    return weights + hand_rate * d_rate
+    return weights + hand_rate * distance_rates(robot, law, start_distance)
