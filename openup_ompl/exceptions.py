@@ -88,14 +88,21 @@ class UnreachableGrasp(InvalidProblem):
         pose: The grasp pose ``[x, y, z, qx, qy, qz, qw]`` in the world frame.
         attempts: IK restarts tried.
         in_collision: How many of the IK solutions found were rejected for collision.
+        margin: The clearance [m] a solution needed.
     """
 
-    def __init__(self, pose: Sequence[float], attempts: int, in_collision: int) -> None:
+    def __init__(
+        self, pose: Sequence[float], attempts: int, in_collision: int, margin: float = 0.0
+    ) -> None:
         self.pose = list(pose)
         self.attempts = attempts
         self.in_collision = in_collision
+        self.margin = margin
         if in_collision:
-            why = f"reachable only in collision ({in_collision} IK solutions, all colliding)"
+            why = (
+                f"reachable only in collision ({in_collision} IK solutions with the hand at"
+                f" c, all colliding or closer than {margin * 1e3:.3g} mm)"
+            )
         else:
             why = "out of reach (no IK solution)"
         super().__init__(f"grasp pose {self.pose} is {why} after {attempts} IK restarts")

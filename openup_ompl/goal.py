@@ -59,7 +59,7 @@ class GraspGoal:
         """A new collision-free IK solution (random restarts), or ``None``."""
         restarts = max_restarts or self.ik.options.max_restarts
         for _ in range(restarts):
-            arm = self.ik.refine(self.rng.uniform(self.ik._lower, self.ik._upper))
+            arm = self.ik.refine(self.ik.random_arm(self.rng))
             if arm is None:
                 continue
             if self.checker.is_valid_with_hand(arm, self._hand_at_goal):
@@ -80,6 +80,7 @@ class GraspGoal:
                 self.checker.problem.grasp_pose.tolist(),
                 self.ik.calls - calls_before,
                 self.rejected - rejected_before,
+                self.checker.paddings[-1],
             )
         return solution
 

@@ -74,6 +74,10 @@ class IKSolver:
         self._damping_eye = self.options.damping * np.eye(6)
         self.calls = 0
 
+    def random_arm(self, rng: np.random.Generator) -> np.ndarray:
+        """A restart point drawn uniformly inside the arm joint limits."""
+        return rng.uniform(self._lower, self._upper)
+
     def error(self, arm: np.ndarray) -> tuple[float, float]:
         """Palm position error [m] and rotation error [rad] at an arm configuration."""
         self._q[self.robot.arm_idx] = arm
@@ -110,10 +114,7 @@ class IKSolver:
     ) -> np.ndarray | None:
         """Up to ``max_restarts`` refinements (the first from ``seed_arm`` if given)."""
         for attempt in range(self.options.max_restarts):
-            if attempt == 0 and seed_arm is not None:
-                start = seed_arm
-            else:
-                start = rng.uniform(self._lower, self._upper)
+            start = seed_arm if attempt == 0 and seed_arm is not None else self.random_arm(rng)
             solution = self.refine(start)
             if solution is not None:
                 return solution

@@ -58,9 +58,6 @@ _UNSUPPORTED = {
     "aorrtc": "crashes on a Python goal region in OMPL 2.0.1",
 }
 
-#: Planners that optimise a cost and need an objective.
-_OPTIMIZING = {"rrtstar", "informedrrtstar", "sorrtstar", "bitstar", "fmt", "bfmt"}
-
 
 def _hand_override(value: str | Sequence[float] | None, law: HandLaw) -> np.ndarray | None:
     if value is None:
@@ -136,12 +133,19 @@ class GraspPlanningSetup:
         self.motion_validator = CoupledMotionValidator(si, self.checker)
         self.simple_setup.setStateValidityChecker(self.validity_checker)
         si.setMotionValidator(self.motion_validator)
+        # Path length, satisfied by any solution: the optimising planners (RRT*, BIT*,
+        # FMT*, ...) return their first exact solution instead of refining until the
+        # time limit; the others ignore it.
+        objective = ob.PathLengthOptimizationObjective(si)
+        objective.setCostThreshold(ob.Cost(math.inf))
+        self.simple_setup.setOptimizationObjective(objective)
         # Only OMPL's own interpolation reads this fraction (our validator has its own bound).
         step = resolution / float(np.max(self.checker.motion_weights))
         si.setStateValidityCheckingResolution(min(1.0, step / space.getMaximumExtent()))
 
         if not self.checker.is_valid(problem.start):
-            pairs = self.checker.world.colliding_pairs(self.checker.full_q(problem.start))
+            world = self.checker.finest_world
+            pairs = world.colliding_pairs(self.checker.full_q(problem.start))
             raise InvalidProblem(
                 f"start configuration {problem.start.tolist()} is in collision: {pairs}"
             )
@@ -169,12 +173,6 @@ class GraspPlanningSetup:
             options = IKBiRRTOptions(**{**self.ikbirrt_options.__dict__, "seed": seed})
             return IKBiRRT(si, options)
         if key in OMPL_PLANNERS:
-            if key in _OPTIMIZING:
-                # Path length, satisfied by any solution: optimising planners return their
-                # first exact solution instead of refining until the time limit.
-                objective = ob.PathLengthOptimizationObjective(si)
-                objective.setCostThreshold(ob.Cost(math.inf))
-                self.simple_setup.setOptimizationObjective(objective)
             return OMPL_PLANNERS[key](si)
         why = f" ({_UNSUPPORTED[key]})" if key in _UNSUPPORTED else ""
         raise ConfigError("planner", name, f"one of {list(PLANNERS)}{why}")
@@ -302,7 +300,7 @@ class GraspPlanningSetup:
         distance = self.goal.distance(arms[-1])
         if distance > GOAL_THRESHOLD:
             raise PlanningFailed(f"path ends {distance:.2e} m from the grasp pose", "verify", 0.0)
-        flags = self.checker.world.batch_in_collision(
+        flags = self.checker.finest_world.batch_in_collision(
             np.asfortranarray(path.T), stop_at_first=False
         )
         if np.any(flags):

@@ -25,6 +25,10 @@ from openup_ompl.scene import Problem
 #: :mod:`openup_ompl.motion_bound`). Obstacles and object are padded by half of it, which
 #: makes the check of a whole motion exact for the unpadded scene.
 DEFAULT_RESOLUTION = 0.006
+#: Halvings of the padding available where the full margin is not: a state counts as
+#: collision-free down to a clearance of ``padding / 2**REFINE_LEVELS`` (0.375 mm by
+#: default), and motions through thinner margins are cut finer to stay exact.
+REFINE_LEVELS = 3
 
 
 class CoupledChecker:
@@ -37,9 +41,12 @@ class CoupledChecker:
         world: A collision world to reuse (built from ``problem`` if omitted).
         resolution: Motion-check resolution [m] (see :data:`DEFAULT_RESOLUTION`).
         padding: Margin [m] added around obstacles and object; ``None`` gives
-            ``resolution / 2``, the margin that makes motion checks exact.
+            ``resolution / 2``, the margin that makes motion checks exact. Where a state
+            lacks that margin, halved margins (:data:`REFINE_LEVELS`) are tried and the
+            motion around it is cut finer; ``0`` turns the guarantee off.
 
     Attributes:
+        paddings: The margins [m] of the refinement levels, coarsest first.
         states_checked: States checked so far (single and batched).
         motions_checked: Motions checked so far.
     """
@@ -62,6 +69,12 @@ class CoupledChecker:
         self.law = problem.hand_law if law is None else law
         self.world = CollisionWorld(problem, padding=padding) if world is None else world
         self.resolution = float(resolution)
+        self.paddings = [self.world.padding / 2**level for level in range(REFINE_LEVELS + 1)]
+        self._worlds = [self.world] + [
+            CollisionWorld(problem, num_threads=self.world.num_threads, padding=p)
+            for p in self.paddings[1:]
+        ]
+        self.finest_world = self._worlds[-1]
         self._model = self.robot.model
         self._palm = self.robot.palm_frame_id
         start_q = self.robot.full_q(problem.start, self.law(1.0))
@@ -127,9 +140,10 @@ class CoupledChecker:
             q[self._hand_sel] = hand
 
     def is_valid(self, arm: object) -> bool:
-        """Whether the arm configuration, hand set by the law, is collision-free."""
+        """Whether the arm configuration, hand set by the law, is collision-free (with
+        the finest margin, ``paddings[-1]``)."""
         self.states_checked += 1
-        context = self.world.context()
+        context = self.finest_world.context()
         self._fill(context, arm)
         return not pin.computeCollisions(
             self._model, context.data, context.manager, context.q, True
@@ -138,7 +152,7 @@ class CoupledChecker:
     def is_valid_with_hand(self, arm: np.ndarray, hand: np.ndarray) -> bool:
         """Whether the arm configuration with the given hand is collision-free."""
         self.states_checked += 1
-        return not self.world.in_collision(self.robot.full_q(arm, hand))
+        return not self.finest_world.in_collision(self.robot.full_q(arm, hand))
 
     # -- motions --------------------------------------------------------------------------
     def segment_count(self, a: np.ndarray, b: np.ndarray) -> int:
@@ -208,37 +222,90 @@ class CoupledChecker:
     def check_motion(self, a: np.ndarray, b: np.ndarray) -> bool:
         """Whether the straight arm motion ``a -> b`` is collision-free with the coupled hand.
 
-        ``a`` is assumed valid (OMPL's convention). ``b`` is checked first, then the
-        intermediate states at :attr:`resolution`, in one batched parallel query (one by
-        one when the world has a single thread).
+        ``b`` is checked first; then ``a``, the intermediate states at :attr:`resolution`
+        and ``b`` go to the world in one parallel batch, which settles the usual cases:
+        every state keeps the full margin (free), or one collides even with the finest
+        margin (not free). Otherwise some states only keep a thinner margin and the
+        intervals next to them are cut finer until each is covered (:meth:`_certify`).
+        One core checks the states one by one instead (the batch measured slower there).
         """
         if self.world.num_threads == 1:
-            # One core: the batch pool measured slower than the single-state manager.
             return self.check_motion_serial(a, b)
         self.motions_checked += 1
         if not self.is_valid(b):
             return False
-        arms = self.interpolate(a, b)[:-1]
-        if arms.shape[0] == 0:
-            return True
+        arms = np.concatenate([a[None, :], self.interpolate(a, b)])
+        qs = self.full_qs(arms)
         self.states_checked += arms.shape[0]
-        return not bool(np.any(self.world.batch_in_collision(self.full_qs(arms))))
+        if not np.any(self.world.batch_in_collision(qs)):
+            return self._certify(arms, np.zeros(arms.shape[0], dtype=int))
+        if np.any(self.finest_world.batch_in_collision(qs)):
+            return False
+        flags = self.world.batch_in_collision(qs, stop_at_first=False)
+        levels = np.zeros(arms.shape[0], dtype=int)
+        for i in np.flatnonzero(flags):
+            level = self._level(qs[:, i])
+            if level is None:
+                return False
+            levels[i] = level
+        return self._certify(arms, levels)
 
     def check_motion_serial(self, a: np.ndarray, b: np.ndarray) -> bool:
-        """:meth:`check_motion` one state at a time (the reference the batch is measured
-        against in ``benchmarks/bench_validity.py``)."""
+        """:meth:`check_motion` one state at a time (single-core path, and the reference
+        the batch is measured against in ``benchmarks/bench_validity.py``)."""
         self.motions_checked += 1
         if not self.is_valid(b):
             return False
-        return all(self.is_valid(arm) for arm in self.interpolate(a, b)[:-1])
+        arms = np.concatenate([a[None, :], self.interpolate(a, b)])
+        levels = np.zeros(arms.shape[0], dtype=int)
+        for i, arm in enumerate(arms):
+            self.states_checked += 1
+            level = self._level(self.full_q(arm))
+            if level is None:
+                return False
+            levels[i] = level
+        return self._certify(arms, levels)
 
-    def first_invalid(self, a: np.ndarray, b: np.ndarray) -> int:
-        """Index of the first colliding state of :meth:`interpolate` ``(a, b)``, or -1."""
-        arms = self.interpolate(a, b)
-        flags = self.world.batch_in_collision(self.full_qs(arms), stop_at_first=False)
-        self.states_checked += arms.shape[0]
-        hits = np.flatnonzero(flags)
-        return int(hits[0]) if hits.size else -1
+    def _level(self, q: np.ndarray) -> int | None:
+        """Index of the widest margin at which ``q`` is collision-free, or ``None``."""
+        for level, world in enumerate(self._worlds):
+            if not world.in_collision(q):
+                return level
+        return None
+
+    def _certify(self, arms: np.ndarray, levels: np.ndarray) -> bool:
+        """Whether the polyline through ``arms`` is collision-free, given each state's
+        margin level.
+
+        An interval is covered when no robot point moves more than twice the thinner of
+        its two end margins along it: every point then stays within one margin of a
+        checked position. Uncovered intervals are split at their middle, the new state
+        checked, until covered or a state collides even with the finest margin.
+        """
+        pads = np.asarray(self.paddings)
+        reach = np.abs(np.diff(arms, axis=0)) @ self.motion_weights
+        margin = pads[np.maximum(levels[:-1], levels[1:])]
+        if pads[-1] <= 0.0:  # no padding: plain resolution checks, no guarantee
+            return True
+        stack = [
+            (arms[i], int(levels[i]), arms[i + 1], int(levels[i + 1]))
+            for i in np.flatnonzero(reach > 2 * margin)
+        ]
+        while stack:
+            start, start_level, end, end_level = stack.pop()
+            if (
+                float(np.abs(end - start) @ self.motion_weights)
+                <= 2 * pads[max(start_level, end_level)]
+            ):
+                continue
+            middle = 0.5 * (start + end)
+            self.states_checked += 1
+            level = self._level(self.full_q(middle))
+            if level is None:
+                return False
+            stack.append((start, start_level, middle, level))
+            stack.append((middle, level, end, end_level))
+        return True
 
 
 def _selector(indices: np.ndarray) -> slice | np.ndarray:

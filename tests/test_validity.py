@@ -1,0 +1,116 @@
+"""Coupled checks: the OMPL checker, the motion validator, and the bound behind it."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from ompl import util as ompl_util
+from recheck import recheck_plan
+
+import openup_ompl as oo
+from openup_ompl.collision import CollisionWorld
+
+ompl_util.setLogLevel(ompl_util.LOG_ERROR)
+
+
+@pytest.fixture(scope="module")
+def setup() -> oo.GraspPlanningSetup:
+    return oo.GraspPlanningSetup(oo.load_scene(oo.default_scene_path()))
+
+
+def _valid_arms(setup: oo.GraspPlanningSetup, count: int, seed: int) -> list[np.ndarray]:
+    robot = setup.problem.robot
+    rng = np.random.default_rng(seed)
+    arms: list[np.ndarray] = []
+    while len(arms) < count:
+        arm = rng.uniform(robot.arm_lower, robot.arm_upper)
+        if setup.checker.is_valid(arm):
+            arms.append(arm)
+    return arms
+
+
+def test_ompl_checker_equals_law_and_collision(setup: oo.GraspPlanningSetup) -> None:
+    """si.isValid equals a collision check of the full q whose hand is the law's."""
+    si = setup.space_information
+    robot = setup.problem.robot
+    world = setup.checker.finest_world
+    rng = np.random.default_rng(0)
+    state = si.allocState()
+    verdicts = []
+    for _ in range(300):
+        arm = rng.uniform(robot.arm_lower, robot.arm_upper)
+        state[0:7] = arm.tolist()
+        q = robot.full_q(arm, setup.law(setup.checker.distance(arm)))
+        verdicts.append(si.isValid(state))
+        assert verdicts[-1] == (not world.in_collision(q))
+    assert 0 < sum(verdicts) < len(verdicts)
+
+
+def test_motion_bound_covers_every_geometry(setup: oo.GraspPlanningSetup) -> None:
+    """No collision geometry's reference point moves farther than the displacement bound."""
+    checker = setup.checker
+    robot = setup.problem.robot
+    model, geometry = robot.model, robot.collision_model
+    data, geometry_data = model.createData(), geometry.createData()
+
+    def placements(arm: np.ndarray) -> np.ndarray:
+        pin.updateGeometryPlacements(model, data, geometry, geometry_data, checker.full_q(arm))
+        return np.array([p.translation.copy() for p in geometry_data.oMg])
+
+    rng = np.random.default_rng(1)
+    for _ in range(200):
+        a = rng.uniform(robot.arm_lower, robot.arm_upper)
+        b = a + rng.normal(0.0, 0.2, a.size)
+        b = np.clip(b, robot.arm_lower, robot.arm_upper)
+        moved = np.max(np.linalg.norm(placements(b) - placements(a), axis=1))
+        assert moved <= float(np.abs(b - a) @ checker.motion_weights) + 1e-12
+
+
+def test_batched_and_serial_motion_checks_agree(setup: oo.GraspPlanningSetup) -> None:
+    """The batched motion check gives the one-by-one verdict on valid and colliding motions."""
+    arms = _valid_arms(setup, 60, seed=2)
+    verdicts = []
+    for a, b in zip(arms[::2], arms[1::2], strict=True):
+        b = a + (b - a) * 0.4
+        if not setup.checker.is_valid(b):
+            continue
+        verdicts.append(setup.checker.check_motion(a, b))
+        assert verdicts[-1] == setup.checker.check_motion_serial(a, b)
+    assert True in verdicts and False in verdicts
+
+
+def test_accepted_motions_are_free_at_any_resolution(setup: oo.GraspPlanningSetup) -> None:
+    """A motion the validator accepts is collision-free, unpadded, at 20x its resolution."""
+    problem = setup.problem
+    exact = CollisionWorld(problem, num_threads=1)
+    checker = setup.checker
+    arms = _valid_arms(setup, 40, seed=3)
+    accepted = 0
+    for a, b in zip(arms[::2], arms[1::2], strict=True):
+        b = a + (b - a) * 0.3
+        if not (checker.is_valid(b) and checker.check_motion(a, b)):
+            continue
+        accepted += 1
+        steps = 20 * checker.segment_count(a, b)
+        for t in np.linspace(0.0, 1.0, steps + 1):
+            assert not exact.in_collision(checker.full_q(a + t * (b - a)))
+    assert accepted >= 5
+
+
+def test_grasp_tighter_than_the_padding_is_planned(tmp_path: Path) -> None:
+    """Fingers 1.5 mm from the can, less than the 3 mm padding, still plan exactly."""
+    text = oo.default_scene_path().read_text()
+    old = "c = [0.035, 0.035]"
+    assert old in text
+    scene = tmp_path / "tight.toml"
+    scene.write_text(text.replace(old, "c = [0.0315, 0.0315]"))
+    setup = oo.GraspPlanningSetup(oo.load_scene(scene))
+    assert setup.checker.paddings[0] > 0.0015 > setup.checker.paddings[-1]
+    plan = setup.solve(planner="ikbirrt", seed=0)
+    result = recheck_plan(json.loads(plan.save(tmp_path / "plan.json").read_text()))
+    assert result.colliding == []
+    assert result.position_error <= 1e-3
