@@ -107,7 +107,9 @@ def bench_states(setup: openup_ompl.GraspPlanningSetup, args: argparse.Namespace
     problem = setup.problem
     robot = problem.robot
     checker = setup.checker
-    world = checker.world
+    # Single states are checked against the finest margin (the coarser margins only serve
+    # motion checks): the bare variants use that same geometry.
+    world = checker.finest_world
     si = setup.space_information
     model = world.model
     geometry_model = world.geometry_model
