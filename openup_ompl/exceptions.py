@@ -89,19 +89,27 @@ class UnreachableGrasp(InvalidProblem):
         attempts: IK restarts tried.
         in_collision: How many of the IK solutions found were rejected for collision.
         margin: The clearance [m] a solution needed.
+        pairs: Geometry pairs in contact at one rejected solution.
     """
 
     def __init__(
-        self, pose: Sequence[float], attempts: int, in_collision: int, margin: float = 0.0
+        self,
+        pose: Sequence[float],
+        attempts: int,
+        in_collision: int,
+        margin: float = 0.0,
+        pairs: Sequence[tuple[str, str]] = (),
     ) -> None:
         self.pose = list(pose)
         self.attempts = attempts
         self.in_collision = in_collision
         self.margin = margin
+        self.pairs = list(pairs)
         if in_collision:
+            example = f"; e.g. {self.pairs[:3]}" if self.pairs else ""
             why = (
                 f"reachable only in collision ({in_collision} IK solutions with the hand at"
-                f" c, all colliding or closer than {margin * 1e3:.3g} mm)"
+                f" c, all colliding or closer than {margin * 1e3:.3g} mm{example})"
             )
         else:
             why = "out of reach (no IK solution)"

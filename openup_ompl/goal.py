@@ -44,6 +44,7 @@ class GraspGoal:
         self.rng = rng
         self.solutions: list[np.ndarray] = []
         self.rejected = 0
+        self.last_rejected: np.ndarray | None = None
         self._hand_at_goal = checker.law(0.0)
         self._data = checker.robot.model.createData()
         self._q = checker.robot.neutral()
@@ -66,6 +67,7 @@ class GraspGoal:
                 self.solutions.append(arm)
                 return arm
             self.rejected += 1
+            self.last_rejected = arm
         return None
 
     def ensure_solution(self, max_restarts: int = 200) -> np.ndarray:
@@ -76,11 +78,16 @@ class GraspGoal:
         rejected_before = self.rejected
         solution = self.sample(max_restarts)
         if solution is None:
+            pairs: list[tuple[str, str]] = []
+            if self.rejected > rejected_before and self.last_rejected is not None:
+                q = self.checker.robot.full_q(self.last_rejected, self._hand_at_goal)
+                pairs = self.checker.finest_world.colliding_pairs(q)
             raise UnreachableGrasp(
                 self.checker.problem.grasp_pose.tolist(),
                 self.ik.calls - calls_before,
                 self.rejected - rejected_before,
                 self.checker.paddings[-1],
+                pairs,
             )
         return solution
 

@@ -56,6 +56,15 @@ def test_default_scene_solved_on_19_of_20_seeds(
     assert solved >= 19
 
 
+@pytest.mark.parametrize("scene", ["contract_example.toml", "panda_box_side.toml"])
+@pytest.mark.parametrize("planner", ["ikbirrt", "rrtconnect"])
+def test_other_scenes_solved_and_recheck(scene: str, planner: str, tmp_path: Path) -> None:
+    """A side grasp under a shelf and the CONTRACT's example: 5 seeds, every plan re-checks."""
+    setup = oo.GraspPlanningSetup(oo.load_scene(SCENES / scene))
+    for seed in range(5):
+        _check_plan_file(setup.solve(time_limit=5.0, planner=planner, seed=seed), tmp_path)
+
+
 def test_simplified_plan_rechecks(default_setup: oo.GraspPlanningSetup, tmp_path: Path) -> None:
     """OMPL's simplifier keeps the plan valid; the hand is re-derived from the law."""
     plan = default_setup.solve(time_limit=5.0, planner="ikbirrt", seed=4, simplify=True)
@@ -149,8 +158,9 @@ def test_unreachable_grasp_is_rejected(tmp_path: Path) -> None:
 def test_grasp_inside_table_is_rejected(tmp_path: Path) -> None:
     """A grasp pose reachable only in collision raises UnreachableGrasp saying so."""
     path = _scene(tmp_path, GRASP, "pose = [0.6, 0.3, 0.05, 1.0, 0.0, 0.0, 0.0]")
-    with pytest.raises(oo.UnreachableGrasp, match="only in collision"):
+    with pytest.raises(oo.UnreachableGrasp, match="only in collision") as error:
         oo.GraspPlanningSetup(oo.load_scene(path))
+    assert any("env/table" in pair for pair in error.value.pairs)
 
 
 def test_start_at_goal_is_rejected(default_problem: oo.Problem, tmp_path: Path) -> None:
