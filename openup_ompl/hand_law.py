@@ -274,7 +274,3 @@ class GoalDistance:
     def __call__(self, placement: pin.SE3) -> float:
         """Normalised distance ``d`` of a palm placement (0 at the grasp, 1 at the start)."""
         return self.raw(placement) * self._inv_start
-
-    def positions(self, palm_positions: np.ndarray) -> np.ndarray:
-        """Normalised translation distances for an ``(N, 3)`` array of palm positions."""
-        return np.linalg.norm(palm_positions - self._goal, axis=1) * self._inv_start

@@ -23,7 +23,8 @@ class Plan:
 
     Attributes:
         path: ``(N, nq)`` full configurations (arm and hand) in Pinocchio's ``q`` order,
-            consecutive rows at most the checker's resolution apart in the arm joints,
+            no robot point moving more than the checker's resolution between consecutive
+            rows (the straight arm motion between them checked exactly),
             the hand set by the law at every row. Row 0 is the start; the last row puts the
             palm on the grasp pose.
         waypoints: ``(M, dof)`` arm configurations the planner returned (after

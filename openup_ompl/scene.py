@@ -79,18 +79,6 @@ class Shape:
         assert self.length is not None
         return coal.Cylinder(self.radius + padding, self.length + 2 * padding)
 
-    def moved(self, pose: np.ndarray) -> Shape:
-        """The same shape at another pose (e.g. a perturbed object)."""
-        return Shape(
-            self.name,
-            self.shape,
-            np.asarray(pose, float),
-            self.size,
-            self.radius,
-            self.length,
-            {**self.raw, "pose": list(map(float, pose))},
-        )
-
 
 @dataclass(eq=False)
 class Problem:

@@ -106,10 +106,6 @@ class CoupledChecker:
         pin.forwardKinematics(self._model, context.data, q)
         return self.goal_distance(pin.updateFramePlacement(self._model, context.data, self._palm))
 
-    def hand(self, arm: np.ndarray) -> np.ndarray:
-        """Hand configuration the law gives at an arm configuration."""
-        return self.full_q(arm)[self._hand_idx]
-
     def full_q(self, arm: np.ndarray) -> np.ndarray:
         """Full configuration for an arm configuration, the hand set by the law (a copy)."""
         context = self.world.context()
