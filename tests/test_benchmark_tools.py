@@ -25,6 +25,7 @@ def test_ompl_benchmark_runs_ikbirrt_and_rrtconnect(tmp_path: Path) -> None:
     request.maxTime = 5.0
     request.runCount = 2
     request.displayProgress = False
+    request.saveConsoleOutput = False
     benchmark.benchmark(request)
     log = tmp_path / "bench.log"
     assert benchmark.saveResultsToFile(str(log))
