@@ -101,10 +101,8 @@ class CoupledChecker:
     def distance(self, arm: np.ndarray) -> float:
         """Normalised palm-to-grasp distance ``d`` (Algorithm 1) of an arm configuration."""
         context = self.world.context()
-        q = context.q
-        q[self._arm_sel] = arm
-        pin.forwardKinematics(self._model, context.data, q)
-        return self.goal_distance(pin.updateFramePlacement(self._model, context.data, self._palm))
+        context.q[self._arm_sel] = arm
+        return self._palm_distance(context.data, context.q)
 
     def full_q(self, arm: np.ndarray) -> np.ndarray:
         """Full configuration for an arm configuration, the hand set by the law (a copy)."""
@@ -279,10 +277,10 @@ class CoupledChecker:
         checked, until covered or a state collides even with the finest margin.
         """
         pads = np.asarray(self.paddings)
-        reach = np.abs(np.diff(arms, axis=0)) @ self.motion_weights
-        margin = pads[np.maximum(levels[:-1], levels[1:])]
         if pads[-1] <= 0.0:  # no padding: plain resolution checks, no guarantee
             return True
+        reach = np.abs(np.diff(arms, axis=0)) @ self.motion_weights
+        margin = pads[np.maximum(levels[:-1], levels[1:])]
         stack = [
             (arms[i], int(levels[i]), arms[i + 1], int(levels[i + 1]))
             for i in np.flatnonzero(reach > 2 * margin)

@@ -53,23 +53,21 @@ def test_bad_arguments_exit_with_one_error_line(tmp_path, args, named):
     assert named in result.stderr
 
 
-def test_malformed_scene_exits_with_one_error_line(tmp_path, default_scene_text):
-    """A scene with a TOML syntax error exits non-zero with one line naming the file."""
+@pytest.mark.parametrize(
+    ("old", "new", "named"),
+    [
+        ("u = 0.3", "u = ", "broken.toml"),  # a TOML syntax error names the file
+        ('robot = "panda"', 'robot = "r2d2"', "r2d2"),  # an unknown robot is named
+    ],
+)
+def test_bad_scene_exits_with_one_error_line(tmp_path, default_scene_text, old, new, named):
+    """A malformed scene exits non-zero with one line naming the fault; no plan written."""
     scene = tmp_path / "broken.toml"
-    scene.write_text(default_scene_text.replace("u = 0.3", "u = "))
-    result = run_cli("plan", str(scene), cwd=tmp_path)
+    scene.write_text(default_scene_text.replace(old, new))
+    result = run_cli("plan", str(scene), "--out", str(tmp_path / "plan.json"), cwd=tmp_path)
     assert_one_error_line(result)
-    assert "broken.toml" in result.stderr
+    assert named in result.stderr
     assert not list(tmp_path.glob("*.json"))
-
-
-def test_unknown_robot_in_scene_exits_with_one_error_line(tmp_path, default_scene_text):
-    """A scene naming an unknown robot exits non-zero with one line naming the robot."""
-    scene = tmp_path / "scene.toml"
-    scene.write_text(default_scene_text.replace('robot = "panda"', 'robot = "r2d2"'))
-    result = run_cli("plan", str(scene), cwd=tmp_path)
-    assert_one_error_line(result)
-    assert "r2d2" in result.stderr
 
 
 @pytest.fixture(scope="module")
