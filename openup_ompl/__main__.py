@@ -85,10 +85,12 @@ def build_parser() -> argparse.ArgumentParser:
     plan.add_argument("scene", type=Path, help="scene TOML (CONTRACT section 3)")
     planning_options(plan, 5.0)
     plan.add_argument("--out", type=Path, default=None, help="plan JSON to write")
+    plan.set_defaults(handler=_plan_command)
 
     demo = commands.add_parser("demo", help="plan the default scene; write its plan and pictures")
     planning_options(demo, 5.0)
     demo.add_argument("--out", type=Path, default=Path("openup-demo"), help="output directory")
+    demo.set_defaults(handler=_demo_command)
     return parser
 
 
@@ -112,47 +114,59 @@ def _summary(plan) -> str:  # type: ignore[no-untyped-def]
     )
 
 
+def _plan_command(args: argparse.Namespace) -> int:
+    _, plan = _plan(args, args.scene)
+    print(_summary(plan))
+    if args.out is not None:
+        print(f"plan written to {plan.save(args.out)}")
+    return 0
+
+
+def _demo_command(args: argparse.Namespace) -> int:
+    from openup_ompl.scene import default_scene_path
+
+    setup, plan = _plan(args, default_scene_path())
+    print(_summary(plan))
+    out: Path = args.out
+    print(f"plan written to {plan.save(out / 'plan.json')}")
+    try:
+        import numpy as np
+
+        from openup_ompl.figures import plot_hand_law
+
+        distances = [setup.checker.distance(arm) for arm in plan.arm_path]
+        figure = plot_hand_law(plan, np.array(distances), out / "hand_law.png")
+        print(f"hand law figure written to {figure}")
+    except ImportError as error:
+        print(f"no figures: {error}", file=sys.stderr)
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the command line; returns the exit status."""
+    """Run the command line; returns the exit status.
+
+    Each subcommand sets ``handler`` (``args -> exit status``); commands that plan take
+    ``--seed``, which seeds OMPL's process-wide generator before any OMPL object exists.
+    """
     args = build_parser().parse_args(argv)
-    if args.seed is None:
-        args.seed = secrets.randbelow(2**31)
     from ompl import util as ompl_util
 
-    # OMPL's planners draw from one process-wide generator that can only be seeded before
-    # any OMPL object exists: do it first, so that the same seed gives the same plan.
-    ompl_util.RNG.setSeed(args.seed)
+    if hasattr(args, "seed"):
+        if args.seed is None:
+            args.seed = secrets.randbelow(2**31)
+        # OMPL's planners draw from one process-wide generator that can only be seeded
+        # before any OMPL object exists: do it first, so that the same seed gives the same
+        # plan.
+        ompl_util.RNG.setSeed(args.seed)
     ompl_util.setLogLevel(ompl_util.LOG_ERROR)
     try:
-        if args.command == "plan":
-            _, plan = _plan(args, args.scene)
-            print(_summary(plan))
-            if args.out is not None:
-                print(f"plan written to {plan.save(args.out)}")
-        elif args.command == "demo":
-            from openup_ompl.scene import default_scene_path
-
-            setup, plan = _plan(args, default_scene_path())
-            print(_summary(plan))
-            out: Path = args.out
-            print(f"plan written to {plan.save(out / 'plan.json')}")
-            try:
-                from openup_ompl.figures import plot_hand_law
-
-                distances = [setup.checker.distance(arm) for arm in plan.arm_path]
-                import numpy as np
-
-                figure = plot_hand_law(plan, np.array(distances), out / "hand_law.png")
-                print(f"hand law figure written to {figure}")
-            except ImportError as error:
-                print(f"no figures: {error}", file=sys.stderr)
+        return int(args.handler(args))
     except PlanningFailed as error:
         print(f"openup-ompl: planning failed: {error}", file=sys.stderr)
         return 1
     except (OpenUpError, OSError) as error:
         print(f"openup-ompl: error: {error}", file=sys.stderr)
         return 2
-    return 0
 
 
 def run() -> None:
