@@ -25,6 +25,10 @@ from openup_ompl.scene import Problem
 #: :mod:`openup_ompl.motion_bound`). Obstacles and object are padded by half of it, which
 #: makes the check of a whole motion exact for the unpadded scene.
 DEFAULT_RESOLUTION = 0.006
+#: Forward kinematics for ``d`` at every this many states of a motion; the states between
+#: are bounded from these (see :meth:`CoupledChecker._law_distances`).
+ANCHOR_STRIDE = 8
+
 #: Halvings of the padding available where the full margin is not: a state counts as
 #: collision-free down to a clearance of ``padding / 2**REFINE_LEVELS`` (0.375 mm by
 #: default), and motions through thinner margins are cut finer to stay exact.
@@ -182,35 +186,37 @@ class CoupledChecker:
         certainly on the law's plateau.
 
         Only ``d <= mga`` changes the hand. Since ``d`` is Lipschitz in the arm joints
-        (:func:`~openup_ompl.motion_bound.distance_rates`), two computed ends whose
-        bounds keep every state between them above ``mga`` settle that whole run without
-        forward kinematics; otherwise the run is split at its middle. Far from the grasp
-        this costs a few forward kinematics per motion instead of one per state.
+        (:func:`~openup_ompl.motion_bound.distance_rates`), forward kinematics at every
+        :data:`ANCHOR_STRIDE`-th state bounds ``d`` from below at the states between
+        two anchors; those whose bound stays above ``mga`` are settled without forward
+        kinematics, the others get their own. Far from the grasp this costs one forward
+        kinematics per stride; near it, one per state, plus one vectorised bound.
         """
         n = qs.shape[1]
         data = self.world.context().data
+        distance = self._palm_distance
+        if n <= 2:
+            return np.array([distance(data, qs[:, k]) for k in range(n)])
+        anchors = np.arange(0, n + ANCHOR_STRIDE - 1, ANCHOR_STRIDE)
+        anchors[-1] = n - 1
         d = np.empty(n)
-        d[0] = self._palm_distance(data, qs[:, 0])
-        if n == 1:
-            return d
-        d[n - 1] = self._palm_distance(data, qs[:, n - 1])
+        for k in anchors.tolist():
+            d[k] = distance(data, qs[:, k])
         arms = qs[self._arm_idx, :]
-        mga = self.law.mga
-        plateau = mga + 1.0
-        runs = [(0, n - 1)]
-        while runs:
-            i, j = runs.pop()
-            if j - i < 2:
-                continue
-            inner = arms[:, i + 1 : j]
-            from_i = d[i] - np.abs(inner - arms[:, i : i + 1]).T @ self.distance_rates
-            from_j = d[j] - np.abs(inner - arms[:, j : j + 1]).T @ self.distance_rates
-            if np.all(np.maximum(from_i, from_j) > mga):
-                d[i + 1 : j] = plateau
-                continue
-            mid = (i + j) // 2
-            d[mid] = self._palm_distance(data, qs[:, mid])
-            runs.extend(((i, mid), (mid, j)))
+        segment = np.arange(n) // ANCHOR_STRIDE
+        left = anchors[np.minimum(segment, anchors.size - 1)]
+        right = anchors[np.minimum(segment + 1, anchors.size - 1)]
+        rates = self.distance_rates
+        bound = np.maximum(
+            d[left] - rates @ np.abs(arms - arms[:, left]),
+            d[right] - rates @ np.abs(arms - arms[:, right]),
+        )
+        between = np.ones(n, dtype=bool)
+        between[anchors] = False
+        settled = between & (bound > self.law.mga)
+        d[settled] = self.law.mga + 1.0
+        for k in np.flatnonzero(between & ~settled).tolist():
+            d[k] = distance(data, qs[:, k])
         return d
 
     def check_motion(self, a: np.ndarray, b: np.ndarray) -> bool:
