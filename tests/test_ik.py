@@ -1,0 +1,51 @@
+"""Damped least-squares IK of the palm frame."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from openup_ompl.exceptions import ConfigError
+from openup_ompl.ik import IKOptions, IKSolver
+
+
+@pytest.fixture()
+def target(panda):
+    """A reachable palm pose: the palm at a random configuration inside the limits."""
+    arm = np.random.default_rng(3).uniform(panda.arm_lower, panda.arm_upper)
+    return panda.palm_placement(panda.model.createData(), panda.full_q(arm, np.zeros(2)))
+
+
+def test_solutions_reach_the_target_within_tolerance(panda, target):
+    """Every solution returned puts the palm on the target within the tolerances."""
+    solver = IKSolver(panda, target)
+    rng = np.random.default_rng(0)
+    found = [solver.solve(rng) for _ in range(5)]
+    assert any(arm is not None for arm in found)
+    for arm in (a for a in found if a is not None):
+        position, rotation = solver.error(arm)
+        assert position < solver.options.position_tolerance
+        assert rotation < solver.options.rotation_tolerance
+        assert np.all(arm >= panda.arm_lower) and np.all(arm <= panda.arm_upper)
+
+
+def test_unreachable_target_stalls_early(panda):
+    """A target out of reach is abandoned at a stall check, well before the budget."""
+    far = pin.SE3(np.eye(3), np.array([3.0, 0.0, 0.5]))
+    solver = IKSolver(panda, far, IKOptions(max_iterations=150, stall_iterations=10))
+    assert solver.refine(panda.spec.home) is None
+    assert solver.iterations < 100
+    patient = IKSolver(panda, far, IKOptions(max_iterations=150, stall_ratio=1e9))
+    assert patient.refine(panda.spec.home) is None
+    assert patient.iterations == 150
+
+
+@pytest.mark.parametrize(
+    "field, value",
+    [("max_iterations", 0), ("stall_iterations", 0), ("stall_ratio", 0.0), ("damping", -1.0)],
+)
+def test_bad_options_are_named(field, value):
+    """A bad IK option raises ConfigError naming the option."""
+    with pytest.raises(ConfigError, match=field):
+        IKOptions(**{field: value})
