@@ -1,4 +1,4 @@
-"""Command line: ``openup-ompl plan``, ``openup-ompl demo`` (also ``python -m openup_ompl``).
+"""Command line: ``openup-ompl plan``, ``demo``, ``show``, ``law`` (also ``python -m openup_ompl``).
 
 Bad input ends with one line on stderr and exit status 2; a planner that finds no
 solution ends with its OMPL status on stderr and exit status 1. No plan file is written
@@ -91,6 +91,28 @@ def build_parser() -> argparse.ArgumentParser:
     planning_options(demo, 5.0)
     demo.add_argument("--out", type=Path, default=Path("openup-demo"), help="output directory")
     demo.set_defaults(handler=_demo_command)
+
+    show = commands.add_parser(
+        "show", help="write a plan's pictures: HTML animation, storyboard, hand law figure"
+    )
+    show.add_argument("plan", type=Path, help="plan JSON (CONTRACT section 4)")
+    show.add_argument(
+        "--out", type=Path, default=None, help="output directory (default: the plan's)"
+    )
+    show.set_defaults(handler=_show_command)
+
+    law = commands.add_parser("law", help="plot the hand law alone for several u (Fig. 3)")
+    source = law.add_mutually_exclusive_group()
+    source.add_argument("--robot", default=None, help="robot name or TOML (default: panda)")
+    source.add_argument(
+        "--scene", type=Path, default=None, help="scene TOML: its robot and [hand] overrides"
+    )
+    law.add_argument(
+        "--u", type=_unit_float, nargs="+", default=[0.0, 0.3, 1.0], help="values of u in [0, 1]"
+    )
+    law.add_argument("--continuous", action="store_true", help="the law without the jump at mga")
+    law.add_argument("--out", type=Path, default=None, help="PNG (default: <robot>_hand_law.png)")
+    law.set_defaults(handler=_law_command)
     return parser
 
 
@@ -123,22 +145,60 @@ def _plan_command(args: argparse.Namespace) -> int:
 
 
 def _demo_command(args: argparse.Namespace) -> int:
+    from openup_ompl.figures import MissingExtra
     from openup_ompl.scene import default_scene_path
 
-    setup, plan = _plan(args, default_scene_path())
+    _, plan = _plan(args, default_scene_path())
     print(_summary(plan))
     out: Path = args.out
-    print(f"plan written to {plan.save(out / 'plan.json')}")
+    path = plan.save(out / "plan.json")
+    print(f"plan written to {path}")
     try:
-        import numpy as np
+        _print_shown(path, out)
+    except MissingExtra as error:
+        print(f"no pictures: {error}", file=sys.stderr)
+    return 0
 
-        from openup_ompl.figures import plot_hand_law
 
-        distances = [setup.checker.distance(arm) for arm in plan.arm_path]
-        figure = plot_hand_law(plan, np.array(distances), out / "hand_law.png")
-        print(f"hand law figure written to {figure}")
-    except ImportError as error:
-        print(f"no figures: {error}", file=sys.stderr)
+def _print_shown(plan: Path, out: Path | None) -> None:
+    from openup_ompl.viz import show
+
+    shown = show(plan, out)
+    print(f"animation written to {shown.html} (open it in a browser)")
+    print(f"storyboard written to {shown.storyboard}")
+    print(f"hand law figure written to {shown.hand_law}")
+
+
+def _show_command(args: argparse.Namespace) -> int:
+    _print_shown(args.plan, args.out)
+    return 0
+
+
+def _law_command(args: argparse.Namespace) -> int:
+    from openup_ompl.figures import plot_law
+    from openup_ompl.robot import load_robot
+    from openup_ompl.scene import load_scene
+    from openup_ompl.viz._scene import prismatic_joints
+
+    if args.scene is not None:
+        problem = load_scene(args.scene)
+        robot, law = problem.robot, problem.hand_law
+        what = f"{robot.name} in {args.scene.name}"
+    else:
+        robot = load_robot(args.robot or "panda")
+        law, what = robot.hand_law(), robot.name
+    law = law.with_options(continuous=True) if args.continuous else law
+    joints = list(robot.spec.hand_joints)
+    figure = plot_law(
+        law,
+        args.out or Path(f"{robot.name}_hand_law.png"),
+        us=args.u,
+        joint_names=joints,
+        prismatic=prismatic_joints(robot.model, joints).tolist(),
+        title=f"hand law of {what} (Algorithm 3), mga = {law.mga:g}"
+        + (", continuous" if law.continuous else ""),
+    )
+    print(f"hand law figure written to {figure}")
     return 0
 
 

@@ -1,0 +1,73 @@
+"""Pictures of a plan: an interactive HTML animation, a storyboard and the paper's Fig. 3.
+
+Everything is built from a plan file alone (CONTRACT §4) and the URDF and meshes it names.
+The optional extra ``viz`` (``pip install 'openup-ompl[viz]'``) brings what draws them:
+meshcat (its three.js viewer, inlined in the HTML) and matplotlib. They are imported only
+when a picture is made; a missing one raises :class:`~openup_ompl.figures.MissingExtra`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from openup_ompl.viz._scene import PlanScene
+from openup_ompl.viz.html import HtmlOptions, write_html
+from openup_ompl.viz.storyboard import StoryboardOptions, write_storyboard
+
+
+@dataclass(frozen=True)
+class Shown:
+    """The files :func:`show` wrote.
+
+    Attributes:
+        html: The interactive animation (one self-contained HTML file).
+        storyboard: The storyboard PNG.
+        hand_law: The paper's Fig. 3 for the plan (PNG).
+    """
+
+    html: Path
+    storyboard: Path
+    hand_law: Path
+
+
+def show(
+    plan: str | Path,
+    out_dir: str | Path | None = None,
+    html: HtmlOptions | None = None,
+    storyboard: StoryboardOptions | None = None,
+) -> Shown:
+    """Write the pictures of a plan file: ``<stem>.html``, ``<stem>_storyboard.png`` and
+    ``<stem>_hand_law.png`` in ``out_dir`` (default: the plan file's directory).
+
+    Raises:
+        ConfigError: The file is not a readable plan, or its URDF or meshes cannot be
+            loaded.
+        MissingExtra: matplotlib or meshcat is not installed.
+    """
+    from openup_ompl.figures import _pyplot, plot_hand_law
+    from openup_ompl.viz.html import _meshcat
+
+    # A missing extra is reported before anything is written.
+    _pyplot()
+    _meshcat()
+    plan = Path(plan)
+    scene = PlanScene.from_file(plan)
+    out = Path(out_dir) if out_dir is not None else plan.parent
+    stem = plan.stem
+    # The storyboard loads the robot's meshes first: a missing one fails with no file written.
+    board = write_storyboard(scene, out / f"{stem}_storyboard.png", storyboard)
+    page = write_html(scene, out / f"{stem}.html", html)
+    figure = plot_hand_law(scene, out / f"{stem}_hand_law.png")
+    return Shown(html=page, storyboard=board, hand_law=figure)
+
+
+__all__ = [
+    "HtmlOptions",
+    "PlanScene",
+    "Shown",
+    "StoryboardOptions",
+    "show",
+    "write_html",
+    "write_storyboard",
+]
