@@ -61,12 +61,15 @@ def build_collision_model(
 
     Pairs: the robot's self-collision pairs (already pruned by its SRDF) and every robot
     geometry against every environment shape. Environment shapes never test each other.
-    Each environment shape is grown by ``padding`` [m] on every side.
+    Each environment shape is grown by ``padding`` [m] plus the robot's own
+    ``spec.padding`` on every side (the robot's is never halved; self-collision is not
+    padded).
     """
     robot = problem.robot
     model = robot.collision_model.copy()
     n_robot = model.ngeoms
     shapes = problem.environment if environment is None else environment
+    padding = padding + robot.spec.padding
     for shape in shapes:
         geometry = pin.GeometryObject(
             f"env/{shape.name}", 0, 0, shape.placement, shape.geometry(padding)

@@ -114,7 +114,7 @@ def motion_weights(robot: Robot, law: HandLaw, start_distance: float) -> np.ndar
     """
     model = robot.model
     arm_ids = [model.getJointId(name) for name in robot.spec.arm_joints]
-    hand_ids = [model.getJointId(name) for name in robot.spec.hand_joints]
+    hand_ids = [model.getJointId(name) for name in robot.hand_joints]
     weights = np.array([_joint_weight(robot, j) for j in arm_ids])
     if law.fixed is not None:
         return weights

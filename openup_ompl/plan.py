@@ -74,13 +74,13 @@ class Plan:
             "solve_time_s": self.solve_time_s,
             "robot": {
                 "name": spec.name,
-                "urdf": str(spec.urdf),
-                "srdf": None if spec.srdf is None else str(spec.srdf),
+                "urdf": str(robot.urdf),
+                "srdf": None if robot.srdf is None else str(robot.srdf),
                 "package_dirs": list(robot.package_dirs),
                 "palm_frame": spec.palm_frame,
                 "joint_names": robot.joint_names,
                 "arm_joints": list(spec.arm_joints),
-                "hand_joints": list(spec.hand_joints),
+                "hand_joints": list(robot.hand_joints),
             },
             "scene": {
                 "object": None if scene_object is None else scene_object.raw,

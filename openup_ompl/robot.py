@@ -7,9 +7,13 @@ into Pinocchio's configuration vector ``q`` through :attr:`Robot.arm_idx` and
 
 from __future__ import annotations
 
+import hashlib
+import os
 import warnings
+import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import coal
 import numpy as np
@@ -22,6 +26,108 @@ from openup_ompl.hand_law import HandLaw
 
 #: Tolerance [rad or m] when checking a configuration against joint limits.
 LIMIT_TOLERANCE = 1e-9
+
+
+@dataclass(frozen=True)
+class MimicSpec:
+    """A follower joint driven by a hand joint: ``q_f = multiplier * q_leader + offset``.
+
+    Attributes:
+        joint: The follower joint (not in ``arm_joints`` nor ``hand_joints``).
+        leader: The driven hand joint it follows (one of ``hand_joints``).
+        multiplier: Ratio of follower to leader motion.
+        offset: Follower value [rad or m] when the leader is at zero.
+    """
+
+    joint: str
+    leader: str
+    multiplier: float = 1.0
+    offset: float = 0.0
+
+
+@dataclass(frozen=True)
+class MountSpec:
+    """A second URDF (the hand) fixed to a frame of the robot's URDF (the arm).
+
+    Attributes:
+        urdf: Resolved hand URDF.
+        srdf: Resolved hand SRDF (self-collision pruning), or ``None``.
+        frame: Frame of the arm model the hand is fixed to.
+        pose: The hand URDF's root frame in ``frame``: ``[x, y, z, qx, qy, qz, qw]``.
+        prefix: Added to the hand's joint, link and geometry names.
+        disable_collisions: Extra link pairs never checked for collision.
+    """
+
+    urdf: Path
+    srdf: Path | None
+    frame: str
+    pose: np.ndarray
+    prefix: str = ""
+    disable_collisions: tuple[tuple[str, str], ...] = ()
+
+
+def _mount_spec(raw: Any, where: str, base: Path) -> MountSpec:
+    if not isinstance(raw, dict):
+        raise ConfigError(f"{where}: mount", raw, "a [mount] table")
+    known = {"urdf", "srdf", "frame", "pose", "prefix", "disable_collisions"}
+    unknown = sorted(set(raw) - known)
+    if unknown:
+        raise ConfigError(
+            f"{where}: mount.{unknown[0]}", raw[unknown[0]], f"one of {sorted(known)}"
+        )
+    srdf = raw.get("srdf")
+    prefix = raw.get("prefix", "")
+    if not isinstance(prefix, str):
+        raise ConfigError(f"{where}: mount.prefix", prefix, "a string")
+    pairs = raw.get("disable_collisions", [])
+    ok = isinstance(pairs, list) and all(
+        isinstance(p, list) and len(p) == 2 and all(isinstance(x, str) for x in p) for p in pairs
+    )
+    if not ok:
+        raise ConfigError(
+            f"{where}: mount.disable_collisions", pairs, "a list of [link, link] name pairs"
+        )
+    return MountSpec(
+        urdf=resolve_path(
+            _toml.string(_toml.require(raw, "urdf", f"{where}: mount"), f"{where}: mount.urdf"),
+            base,
+            f"{where}: mount.urdf",
+        ),
+        srdf=None
+        if srdf is None
+        else resolve_path(_toml.string(srdf, f"{where}: mount.srdf"), base, f"{where}: mount.srdf"),
+        frame=_toml.string(_toml.require(raw, "frame", f"{where}: mount"), f"{where}: mount.frame"),
+        pose=_toml.pose(_toml.require(raw, "pose", f"{where}: mount"), f"{where}: mount.pose"),
+        prefix=prefix,
+        disable_collisions=tuple((a, b) for a, b in pairs),
+    )
+
+
+def _mimic_specs(raw: Any, where: str, arm: list[str], hand: list[str]) -> tuple[MimicSpec, ...]:
+    if not isinstance(raw, dict):
+        raise ConfigError(f"{where}: mimic", raw, "a [mimic] table of follower = {joint = ...}")
+    specs = []
+    for follower, entry in raw.items():
+        key = f"{where}: mimic.{follower}"
+        if follower in arm or follower in hand:
+            raise ConfigError(key, follower, "a follower not listed in arm_joints or hand_joints")
+        if not isinstance(entry, dict):
+            raise ConfigError(key, entry, "{ joint = LEADER, multiplier = M, offset = O }")
+        unknown = sorted(set(entry) - {"joint", "multiplier", "offset"})
+        if unknown:
+            raise ConfigError(f"{key}.{unknown[0]}", entry[unknown[0]], "joint, multiplier, offset")
+        leader = _toml.string(_toml.require(entry, "joint", key), f"{key}.joint")
+        if leader not in hand:
+            raise ConfigError(f"{key}.joint", leader, f"a driven hand joint, one of {hand}")
+        specs.append(
+            MimicSpec(
+                joint=follower,
+                leader=leader,
+                multiplier=_toml.number(entry.get("multiplier", 1.0), f"{key}.multiplier"),
+                offset=_toml.number(entry.get("offset", 0.0), f"{key}.offset"),
+            )
+        )
+    return tuple(specs)
 
 
 @dataclass(frozen=True)
@@ -44,6 +150,11 @@ class RobotSpec:
         mga: Normalised distance of maximum grip aperture, in (0, 1].
         u: Default pose uncertainty in [0, 1].
         convex: Replace collision meshes by their convex hulls (faster, conservative).
+        padding: Extra clearance [m] the robot keeps from obstacles and object (not
+            applied to self-collision).
+        mount: A hand URDF fixed to a frame of ``urdf``, or ``None``.
+        mimic: Follower joints of the ``[mimic]`` table (URDF ``<mimic>`` tags are added
+            when the robot is loaded).
     """
 
     name: str
@@ -61,6 +172,9 @@ class RobotSpec:
     mga: float
     u: float = 0.0
     convex: bool = True
+    padding: float = 0.0
+    mount: MountSpec | None = None
+    mimic: tuple[MimicSpec, ...] = ()
 
     @classmethod
     def from_file(cls, path: Path) -> RobotSpec:
@@ -76,6 +190,13 @@ class RobotSpec:
         if not isinstance(table, dict):
             raise ConfigError(f"{where}: hand", table, "a [hand] table")
         n = len(hand)
+        known = {
+            "name", "description", "urdf", "srdf", "palm_frame", "arm_joints", "hand_joints",
+            "home", "convex", "padding", "hand", "mount", "mimic",
+        }  # fmt: skip
+        unknown = sorted(set(raw) - known)
+        if unknown:
+            raise ConfigError(f"{where}: {unknown[0]}", raw[unknown[0]], f"one of {sorted(known)}")
         srdf = raw.get("srdf")
         convex = raw.get("convex", True)
         if not isinstance(convex, bool):
@@ -98,9 +219,21 @@ class RobotSpec:
             arm_joints=tuple(arm),
             hand_joints=tuple(hand),
             home=_toml.vector(_toml.require(raw, "home", where), f"{where}: home", len(arm)),
-            c=_toml.vector(_toml.require(table, "c", f"{where}: hand"), f"{where}: hand.c", n),
-            b=_toml.vector(_toml.require(table, "b", f"{where}: hand"), f"{where}: hand.b", n),
-            w=_toml.vector(_toml.require(table, "w", f"{where}: hand"), f"{where}: hand.w", n),
+            c=_toml.vector(
+                _toml.require(table, "c", f"{where}: hand"),
+                f"{where}: hand.c (one value per hand joint)",
+                n,
+            ),
+            b=_toml.vector(
+                _toml.require(table, "b", f"{where}: hand"),
+                f"{where}: hand.b (one value per hand joint)",
+                n,
+            ),
+            w=_toml.vector(
+                _toml.require(table, "w", f"{where}: hand"),
+                f"{where}: hand.w (one value per hand joint)",
+                n,
+            ),
             mga=_toml.number(
                 _toml.require(table, "mga", f"{where}: hand"),
                 f"{where}: hand.mga",
@@ -109,6 +242,9 @@ class RobotSpec:
             ),
             u=_toml.number(table.get("u", 0.0), f"{where}: hand.u", low=0.0, high=1.0),
             convex=convex,
+            padding=_toml.number(raw.get("padding", 0.0), f"{where}: padding", low=0.0),
+            mount=None if "mount" not in raw else _mount_spec(raw["mount"], where, path.parent),
+            mimic=_mimic_specs(raw.get("mimic", {}), where, arm, hand),
         )
 
 
@@ -141,8 +277,18 @@ class Robot:
         collision_model: Robot collision geometries (meshes as convex hulls if
             ``spec.convex``), with self-collision pairs pruned by the SRDF.
         package_dirs: Directories used to resolve ``package://`` mesh URIs.
+        urdf: The URDF describing the whole robot: ``spec.urdf``, or for a robot with a
+            ``[mount]`` the merged URDF the loader wrote (what plan files name).
+        urdf_mimic: Followers from the URDF's ``<mimic>`` tags (joints not listed in the
+            robot file whose leader chain ends at a driven hand joint).
+        srdf: The SRDF of the self-collision pairs left out: ``spec.srdf``, or for a robot
+            with a ``[mount]`` the merged SRDF the loader wrote (arm and hand SRDFs, the
+            mount adjacency, ``mount.disable_collisions``).
         arm_idx: Indices in ``q`` of the arm joints, in ``spec.arm_joints`` order.
-        hand_idx: Indices in ``q`` of the hand joints, in ``spec.hand_joints`` order.
+        hand_idx: Indices in ``q`` of the hand joints: the driven ones in
+            ``spec.hand_joints`` order, then the mimic followers in :attr:`mimic` order.
+        hand_joints: Names of the joints of :attr:`hand_idx`.
+        mimic: Every follower (the ``[mimic]`` table, then URDF tags).
         arm_v_idx: Indices in the velocity vector ``v`` (Jacobian columns) of the arm joints.
         palm_frame_id: Pinocchio frame index of the palm frame.
     """
@@ -151,22 +297,56 @@ class Robot:
     model: pin.Model
     collision_model: pin.GeometryModel
     package_dirs: list[str]
+    urdf: Path | None = None
+    srdf: Path | None = None
+    urdf_mimic: tuple[MimicSpec, ...] = ()
     arm_idx: np.ndarray = field(init=False)
     hand_idx: np.ndarray = field(init=False)
+    hand_joints: tuple[str, ...] = field(init=False)
+    mimic: tuple[MimicSpec, ...] = field(init=False)
     arm_v_idx: np.ndarray = field(init=False)
     palm_frame_id: int = field(init=False)
 
     def __post_init__(self) -> None:
+        if self.urdf is None:
+            self.urdf = self.spec.urdf
+            self.srdf = self.spec.srdf
+        listed = set(self.spec.arm_joints) | set(self.spec.hand_joints)
+        followers = {m.joint: m for m in self.urdf_mimic if m.joint not in listed}
+        followers.update({m.joint: m for m in self.spec.mimic})
+        self.mimic = tuple(followers.values())
+        for mimic in self.mimic:
+            if not self.model.existJointName(mimic.leader):
+                raise JointNotFound(mimic.leader, list(self.model.names)[1:])
+        self.hand_joints = (*self.spec.hand_joints, *(m.joint for m in self.mimic))
         self.arm_idx = self._joint_indices(self.spec.arm_joints)
-        self.hand_idx = self._joint_indices(self.spec.hand_joints)
+        self.hand_idx = self._joint_indices(self.hand_joints)
+        driven = list(self.spec.hand_joints)
+        self._leader = np.array([driven.index(m.leader) for m in self.mimic], dtype=np.intp)
+        self._multiplier = np.array([m.multiplier for m in self.mimic], dtype=float)
+        self._offset = np.array([m.offset for m in self.mimic], dtype=float)
         self.arm_v_idx = np.array(
             [self.model.joints[self.model.getJointId(n)].idx_v for n in self.spec.arm_joints],
             dtype=np.intp,
         )
-        if not self.model.existFrame(self.spec.palm_frame):
-            raise FrameNotFound(self.spec.palm_frame, [f.name for f in self.model.frames])
-        self.palm_frame_id = self.model.getFrameId(self.spec.palm_frame)
+        self.palm_frame_id = frame_id(self.model, self.spec.palm_frame)
         self.check_arm(self.spec.home, "home")
+
+    @property
+    def n_driven(self) -> int:
+        """Number of driven hand joints (the length of ``c``, ``b``, ``w``)."""
+        return len(self.spec.hand_joints)
+
+    def expand_hand(self, driven: np.ndarray) -> np.ndarray:
+        """Driven hand values (last axis, ``spec.hand_joints`` order) with the followers
+        appended (:attr:`hand_joints` order): ``q_f = multiplier * q_leader + offset``."""
+        driven = np.asarray(driven, dtype=float)
+        if driven.shape[-1] != self.n_driven:
+            raise ConfigError(
+                "hand configuration", driven.tolist(), f"{self.n_driven} driven hand joint values"
+            )
+        followers = driven[..., self._leader] * self._multiplier + self._offset
+        return np.concatenate([driven, followers], axis=-1)
 
     def _joint_indices(self, names: tuple[str, ...]) -> np.ndarray:
         indices = []
@@ -215,20 +395,31 @@ class Robot:
         """The full configuration ``q`` from arm and hand joint values."""
         q = self.neutral()
         q[self.arm_idx] = arm
-        q[self.hand_idx] = hand
+        hand = np.asarray(hand, dtype=float)
+        q[self.hand_idx] = self.expand_hand(hand) if hand.size == self.n_driven else hand
         return q
 
     def hand_law(self, **overrides: object) -> HandLaw:
-        """The robot's hand law (its ``[hand]`` table), with fields overridden."""
+        """The robot's hand law (its ``[hand]`` table), with fields overridden.
+
+        ``c``, ``b``, ``w`` (and overrides of them given for the driven joints only) are
+        expanded to the mimic followers: Algorithm 3 is an affine combination of them with
+        weights summing to one, so a follower set by the law stays ``multiplier * leader +
+        offset`` (up to clipping on each joint's own limits).
+        """
         fields: dict[str, object] = {
-            "c": self.spec.c,
-            "b": self.spec.b,
-            "w": self.spec.w,
+            "c": self.expand_hand(self.spec.c),
+            "b": self.expand_hand(self.spec.b),
+            "w": self.expand_hand(self.spec.w),
             "u": self.spec.u,
             "mga": self.spec.mga,
             "lower": self.model.lowerPositionLimit[self.hand_idx],
             "upper": self.model.upperPositionLimit[self.hand_idx],
         }
+        for key in ("c", "b", "w"):
+            value = overrides.get(key)
+            if value is not None and np.size(value) == self.n_driven:  # type: ignore[arg-type]
+                overrides[key] = self.expand_hand(np.asarray(value))
         fields.update({k: v for k, v in overrides.items() if v is not None})
         return HandLaw(**fields)  # type: ignore[arg-type]
 
@@ -255,6 +446,17 @@ class Robot:
         return pin.updateFramePlacement(self.model, data, self.palm_frame_id)
 
 
+def frame_id(model: pin.Model, name: str) -> int:
+    """Index of the frame ``name``; the BODY frame when several frames share the name
+    (e.g. a link and a joint both called ``gripperStator``)."""
+    matches = [f for f in model.frames if f.name == name]
+    if not matches:
+        raise FrameNotFound(name, [f.name for f in model.frames])
+    if len(matches) > 1 and any(f.type == pin.FrameType.BODY for f in matches):
+        return int(model.getFrameId(name, pin.FrameType.BODY))
+    return int(model.getFrameId(name, matches[0].type))
+
+
 def _convex_hulls(geometry_model: pin.GeometryModel) -> None:
     """Replace every mesh by its convex hull (qhull): conservative, about 2x faster."""
     for geometry in geometry_model.geometryObjects:
@@ -264,8 +466,205 @@ def _convex_hulls(geometry_model: pin.GeometryModel) -> None:
             geometry.geometry = shape.convex
 
 
+def cache_dir() -> Path:
+    """Where the loader writes merged URDFs: ``$OPENUP_OMPL_CACHE``, else
+    ``$XDG_CACHE_HOME/openup-ompl``, else ``~/.cache/openup-ompl``."""
+    if os.environ.get("OPENUP_OMPL_CACHE"):
+        return Path(os.environ["OPENUP_OMPL_CACHE"]).expanduser()
+    root = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(root).expanduser() / "openup-ompl"
+
+
+def _write_cached(text: str, stem: str, suffix: str) -> Path:
+    """Write ``text`` to the cache under a content-hashed name (atomic, reused)."""
+    digest = hashlib.sha256(text.encode()).hexdigest()[:16]
+    path = cache_dir() / f"{stem}-{digest}{suffix}"
+    if not path.is_file():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_text(text)
+        tmp.replace(path)
+    return path
+
+
+def _urdf_tree(path: Path, where: str) -> ET.Element:
+    try:
+        return ET.parse(path).getroot()
+    except (OSError, ET.ParseError) as error:
+        raise ConfigError(where, str(path), f"a readable URDF ({error})") from None
+
+
+def _urdf_mimic(root: ET.Element) -> tuple[MimicSpec, ...]:
+    """The ``<mimic>`` tags of a URDF, as follower specs."""
+    specs = []
+    for joint in root.iter("joint"):
+        tag = joint.find("mimic")
+        if tag is not None and joint.get("name") and tag.get("joint"):
+            specs.append(
+                MimicSpec(
+                    joint=str(joint.get("name")),
+                    leader=str(tag.get("joint")),
+                    multiplier=float(tag.get("multiplier", 1.0)),
+                    offset=float(tag.get("offset", 0.0)),
+                )
+            )
+    return tuple(specs)
+
+
+def _resolve_chains(mimic: tuple[MimicSpec, ...], driven: tuple[str, ...]) -> tuple[MimicSpec, ...]:
+    """URDF followers whose leader chain ends at a driven joint, composed to that joint."""
+    by_joint = {m.joint: m for m in mimic}
+    resolved = []
+    for spec in mimic:
+        leader, mult, off, seen = spec.leader, spec.multiplier, spec.offset, {spec.joint}
+        while leader not in driven and leader in by_joint and leader not in seen:
+            seen.add(leader)
+            up = by_joint[leader]
+            leader, mult, off = up.leader, mult * up.multiplier, mult * up.offset + off
+        if leader in driven:
+            resolved.append(MimicSpec(spec.joint, leader, mult, off))
+    return tuple(resolved)
+
+
+def _absolute_meshes(root: ET.Element, urdf: Path, package_dirs: list[str]) -> None:
+    """Rewrite ``package://`` and relative mesh file names as absolute paths."""
+    for mesh in root.iter("mesh"):
+        name = mesh.get("filename", "")
+        if name.startswith("package://"):
+            rest = name[len("package://") :]
+            for base in package_dirs:
+                if (Path(base) / rest).is_file():
+                    mesh.set("filename", str((Path(base) / rest).resolve()))
+                    break
+        elif name.startswith("file://"):
+            mesh.set("filename", name[len("file://") :])
+        elif name and not Path(name).is_absolute():
+            mesh.set("filename", str((urdf.parent / name).resolve()))
+
+
+def _prefix_names(root: ET.Element, prefix: str) -> None:
+    """Prefix every link and joint name (and the references to them) of a URDF or SRDF."""
+    if not prefix:
+        return
+    for element in root.iter():
+        if element.tag in ("link", "joint") and element.get("name"):
+            element.set("name", prefix + str(element.get("name")))
+        if element.tag in ("parent", "child") and element.get("link"):
+            element.set("link", prefix + str(element.get("link")))
+        if element.tag == "mimic" and element.get("joint"):
+            element.set("joint", prefix + str(element.get("joint")))
+        if element.tag == "disable_collisions":
+            for key in ("link1", "link2"):
+                element.set(key, prefix + str(element.get(key)))
+
+
+def _root_link(root: ET.Element) -> str:
+    children = {c.get("link") for c in root.iter("child")}
+    links = [
+        str(link.get("name")) for link in root.findall("link") if link.get("name") not in children
+    ]
+    return links[0]
+
+
+def _merged_urdf(
+    spec: RobotSpec, mount: MountSpec, arm_model: pin.Model, package_dirs: list[str]
+) -> tuple[Path, Path, Path | None]:
+    """Write the merged URDF (and the prefixed hand URDF/SRDF) to the cache.
+
+    Returns:
+        The merged URDF, the hand URDF to load, the hand SRDF to apply.
+    """
+    where = f"{spec.path.name}: mount"
+    arm = _urdf_tree(spec.urdf, f"{spec.path.name}: urdf")
+    hand = _urdf_tree(mount.urdf, f"{where}.urdf")
+    _prefix_names(hand, mount.prefix)
+    hand_urdf, hand_srdf = mount.urdf, mount.srdf
+    if mount.prefix:
+        hand_abs = ET.fromstring(ET.tostring(hand))
+        _absolute_meshes(hand_abs, mount.urdf, [*package_dirs, str(mount.urdf.parent)])
+        hand_urdf = _write_cached(ET.tostring(hand_abs, encoding="unicode"), "hand", ".urdf")
+        if mount.srdf is not None:
+            srdf = _urdf_tree(mount.srdf, f"{where}.srdf")
+            _prefix_names(srdf, mount.prefix)
+            hand_srdf = _write_cached(ET.tostring(srdf, encoding="unicode"), "hand", ".srdf")
+    _absolute_meshes(arm, spec.urdf, package_dirs)
+    _absolute_meshes(hand, mount.urdf, [*package_dirs, str(mount.urdf.parent)])
+    arm_names = {e.get("name") for e in arm if e.tag in ("link", "joint")}
+    clash = sorted(
+        str(e.get("name"))
+        for e in hand
+        if e.tag in ("link", "joint") and e.get("name") in arm_names
+    )
+    if clash:
+        raise ConfigError(f"{where}.prefix", mount.prefix, f"a prefix making {clash[0]!r} unique")
+    # The link the hand is fixed to: the frame itself if a link, else a joint's child link.
+    parent_frame = arm_model.frames[frame_id(arm_model, mount.frame)]
+    links = {e.get("name") for e in arm.findall("link")}
+    if mount.frame in links:
+        parent_link = mount.frame
+    else:
+        joint = next(j for j in arm.findall("joint") if j.get("name") == parent_frame.name)
+        parent_link = str(joint.find("child").get("link"))  # type: ignore[union-attr]
+    placement = pin.XYZQUATToSE3(mount.pose)
+    rpy = pin.rpy.matrixToRpy(placement.rotation)
+    fixed = ET.SubElement(arm, "joint", {"name": f"{mount.prefix}openup_mount", "type": "fixed"})
+    ET.SubElement(fixed, "parent", {"link": parent_link})
+    ET.SubElement(fixed, "child", {"link": _root_link(hand)})
+    ET.SubElement(
+        fixed,
+        "origin",
+        {
+            "xyz": " ".join(repr(float(x)) for x in placement.translation),
+            "rpy": " ".join(repr(float(x)) for x in rpy),
+        },
+    )
+    materials = {e.get("name") for e in arm.findall("material")}
+    for element in hand:
+        if element.tag in ("link", "joint") or (
+            element.tag == "material" and element.get("name") not in materials
+        ):
+            arm.append(element)
+    arm.set("name", spec.name)
+    merged = _write_cached(ET.tostring(arm, encoding="unicode"), spec.name, ".urdf")
+    return merged, hand_urdf, hand_srdf
+
+
+def _build(urdf: Path, package_dirs: list[str], where: str) -> tuple[pin.Model, pin.GeometryModel]:
+    try:
+        model = pin.buildModelFromUrdf(str(urdf))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            collision = pin.buildGeomFromUrdf(
+                model, str(urdf), pin.COLLISION, package_dirs=package_dirs
+            )
+    except (RuntimeError, ValueError) as error:
+        raise ConfigError(where, str(urdf), f"a loadable URDF ({error})") from None
+    return model, collision
+
+
+def _merged_srdf(
+    spec: RobotSpec, mount: MountSpec, hand_srdf: Path | None, pairs: list[tuple[str, str]]
+) -> Path:
+    """Write one SRDF holding the arm's and the hand's disabled pairs plus ``pairs``."""
+    merged = ET.Element("robot", {"name": spec.name})
+    for srdf, where in ((spec.srdf, "srdf"), (hand_srdf, "mount.srdf")):
+        if srdf is not None:
+            root = _urdf_tree(srdf, f"{spec.path.name}: {where}")
+            merged.extend(root.iter("disable_collisions"))
+    for a, b in pairs:
+        ET.SubElement(merged, "disable_collisions", {"link1": a, "link2": b, "reason": "Never"})
+    return _write_cached(ET.tostring(merged, encoding="unicode"), spec.name, ".srdf")
+
+
 def load_robot(name_or_path: str | Path = "panda") -> Robot:
     """Load a robot by shipped name (``"panda"``) or from the path of a robot TOML.
+
+    A robot with a ``[mount]`` is composed with ``pinocchio.appendModel``: the hand's
+    model and geometry fixed to the arm's ``mount.frame`` at ``mount.pose``. Its
+    collision pairs are every pair of geometries on different joints, minus the arm's
+    and the hand's SRDF pairs, the pair (the arm link holding ``mount.frame``, the
+    hand's root link) and ``mount.disable_collisions``. A merged URDF with the same
+    kinematics is written to :func:`cache_dir` for plan files.
 
     Raises:
         RobotNotFound: No robot of that name and no such file.
@@ -273,21 +672,57 @@ def load_robot(name_or_path: str | Path = "panda") -> Robot:
         JointNotFound, FrameNotFound: The file names a joint or frame the URDF lacks.
     """
     spec = RobotSpec.from_file(find_robot_file(name_or_path))
+    srdf = spec.srdf
     package_dirs = [str(erd_share_dir()), str(spec.urdf.parent), str(spec.urdf.parent.parent)]
-    try:
-        model = pin.buildModelFromUrdf(str(spec.urdf))
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            collision = pin.buildGeomFromUrdf(
-                model, str(spec.urdf), pin.COLLISION, package_dirs=package_dirs
-            )
-    except (RuntimeError, ValueError) as error:
-        raise ConfigError(
-            f"{spec.path.name}: urdf", str(spec.urdf), f"a loadable URDF ({error})"
-        ) from None
-    if spec.convex:
-        _convex_hulls(collision)
-    collision.addAllCollisionPairs()
-    if spec.srdf is not None:
-        pin.removeCollisionPairs(model, collision, str(spec.srdf))
-    return Robot(spec=spec, model=model, collision_model=collision, package_dirs=package_dirs)
+    model, collision = _build(spec.urdf, package_dirs, f"{spec.path.name}: urdf")
+    urdf = spec.urdf
+    mount = spec.mount
+    if mount is not None:
+        for extra in (mount.urdf.parent, mount.urdf.parent.parent):
+            if str(extra) not in package_dirs:
+                package_dirs.append(str(extra))
+        if not any(f.name == mount.frame for f in model.frames):
+            raise FrameNotFound(mount.frame, [f.name for f in model.frames])
+        urdf, hand_urdf, hand_srdf = _merged_urdf(spec, mount, model, package_dirs)
+        hand_model, hand_collision = _build(
+            hand_urdf, package_dirs, f"{spec.path.name}: mount.urdf"
+        )
+        hand_root = hand_model.frames[1].name
+        mount_id = frame_id(model, mount.frame)
+        body = model.frames[mount_id]
+        while body.type != pin.FrameType.BODY and body.parentFrame != 0:
+            body = model.frames[body.parentFrame]
+        model, collision = pin.appendModel(
+            model, hand_model, collision, hand_collision, mount_id, pin.XYZQUATToSE3(mount.pose)
+        )
+        collision.removeAllCollisionPairs()
+        if spec.convex:
+            _convex_hulls(collision)
+        collision.addAllCollisionPairs()
+        frames = {f.name for f in model.frames}
+        for pair in mount.disable_collisions:
+            for name in pair:
+                if name not in frames:
+                    raise FrameNotFound(name, sorted(frames))
+        srdf = _merged_srdf(
+            spec, mount, hand_srdf, [(body.name, hand_root), *mount.disable_collisions]
+        )
+        pin.removeCollisionPairs(model, collision, str(srdf))
+    else:
+        if spec.convex:
+            _convex_hulls(collision)
+        collision.addAllCollisionPairs()
+        if spec.srdf is not None:
+            pin.removeCollisionPairs(model, collision, str(spec.srdf))
+    mimic = _resolve_chains(
+        _urdf_mimic(_urdf_tree(urdf, f"{spec.path.name}: urdf")), spec.hand_joints
+    )
+    return Robot(
+        spec=spec,
+        model=model,
+        collision_model=collision,
+        package_dirs=package_dirs,
+        urdf=urdf,
+        srdf=srdf,
+        urdf_mimic=mimic,
+    )

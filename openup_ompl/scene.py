@@ -156,7 +156,7 @@ def load_scene(path: str | Path, robot: Robot | None = None) -> Problem:
         raise ConfigError(
             f"{where}: hand.{unknown[0]}", hand[unknown[0]], f"one of {sorted(known)}"
         )
-    n = robot.hand_idx.size
+    n = robot.n_driven  # c, b, w name the driven hand joints; followers are derived
     overrides: dict[str, object] = {}
     for key in ("c", "b", "w"):
         if key in hand:
