@@ -113,7 +113,46 @@ def build_parser() -> argparse.ArgumentParser:
     law.add_argument("--continuous", action="store_true", help="the law without the jump at mga")
     law.add_argument("--out", type=Path, default=None, help="PNG (default: <robot>_hand_law.png)")
     law.set_defaults(handler=_law_command)
+
+    robots = commands.add_parser(
+        "robots", help="list the available robots: arm DOF, hand joints, description"
+    )
+    robots.set_defaults(handler=_robots_command)
+
+    bench = commands.add_parser(
+        "benchmark",
+        help="run a problem suite through ompl.tools.Benchmark; OMPL logs, database, plots",
+    )
+    bench.add_argument(
+        "--problems",
+        type=Path,
+        nargs="+",
+        default=None,
+        help="scene files or directories (default: the Panda suite, benchmarks/problems/panda)",
+    )
+    bench.add_argument(
+        "--planners", nargs="+", default=["ikbirrt", "rrtconnect"], help="planner names"
+    )
+    bench.add_argument("--runs", type=int, default=10, help="runs per problem, planner and hand")
+    bench.add_argument("--time", type=_positive_float, default=5.0, help="time limit per run [s]")
+    bench.add_argument(
+        "--fixed-hand", action="store_true", help="also run the fixed preshape (hand frozen at w)"
+    )
+    bench.add_argument(
+        "--out", type=Path, default=Path("openup-benchmark"), help="output directory"
+    )
+    bench.add_argument("--workers", type=int, default=None, help="local task processes at a time")
+    bench.add_argument("--scheduler", default=None, help="Dask scheduler address (tcp://host:port)")
+    bench.add_argument("--seed", type=_seed, default=1, help="seed of run 0 (run i: seed + i)")
+    bench.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    bench.set_defaults(handler=_benchmark_command)
     return parser
+
+
+def _benchmark_command(args: argparse.Namespace) -> int:
+    from openup_ompl.benchmark import benchmark_command
+
+    return benchmark_command(args)
 
 
 def _plan(args: argparse.Namespace, scene: Path):  # type: ignore[no-untyped-def]
@@ -188,7 +227,7 @@ def _law_command(args: argparse.Namespace) -> int:
         robot = load_robot(args.robot or "panda")
         law, what = robot.hand_law(), robot.name
     law = law.with_options(continuous=True) if args.continuous else law
-    joints = list(robot.spec.hand_joints)
+    joints = list(robot.hand_joints)
     figure = plot_law(
         law,
         args.out or Path(f"{robot.name}_hand_law.png"),
@@ -199,6 +238,21 @@ def _law_command(args: argparse.Namespace) -> int:
         + (", continuous" if law.continuous else ""),
     )
     print(f"hand law figure written to {figure}")
+    return 0
+
+
+def _robots_command(args: argparse.Namespace) -> int:
+    from openup_ompl.robot import available_robots, load_robot
+
+    rows = [("name", "arm", "hand (driven+followers)", "description")]
+    for name in available_robots():
+        robot = load_robot(name)
+        hand = f"{robot.hand_idx.size} ({robot.n_driven}+{len(robot.mimic)})"
+        rows.append((name, str(robot.arm_idx.size), hand, robot.spec.description))
+    widths = [max(len(row[i]) for row in rows) for i in range(3)]
+    for row in rows:
+        cells = [cell.ljust(width) for cell, width in zip(row[:3], widths, strict=True)]
+        print("  ".join([*cells, row[3]]))
     return 0
 
 

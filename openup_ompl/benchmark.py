@@ -1,0 +1,433 @@
+"""Benchmark a problem suite on OMPL's own tooling.
+
+Every run (problem x planner x hand configuration x repetition) is one task of the
+:mod:`~openup_ompl.executor`: a fresh process loads the scene file, builds a
+:class:`~openup_ompl.planning.GraspPlanningSetup` and runs ``ompl.tools.Benchmark`` once
+with one planner, so each run writes a genuine OMPL benchmark log. The logs are turned
+into an SQLite database by OMPL's own ``ompl_benchmark_statistics`` (Planner Arena reads
+it), then the per-run counters OMPL does not know about are added as extra columns of the
+``runs`` table (:data:`EXTRA_COLUMNS`). PNG plots of solve time and success per problem
+and planner are drawn with matplotlib (the ``viz`` extra).
+
+Hand configurations: ``law`` is the paper's hand law; ``fixed`` is the classical fixed
+preshape, the hand frozen at ``w`` for the whole reach. In the database the fixed runs'
+planner is named ``<planner>_fixed_w``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sqlite3
+import subprocess
+import sys
+import tempfile
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from openup_ompl.exceptions import ConfigError, OpenUpError
+from openup_ompl.executor import Task, load_records, run_tasks
+
+__all__ = [
+    "EXTRA_COLUMNS",
+    "HANDS",
+    "BenchmarkResult",
+    "benchmark_run",
+    "build_database",
+    "default_problems_dir",
+    "find_problems",
+    "make_tasks",
+    "plot_results",
+    "run_benchmark",
+    "summarize",
+]
+
+#: Hand configurations: the law, and the classical fixed preshape (hand frozen at w).
+HANDS: tuple[str, ...] = ("law", "fixed")
+#: Columns added to the database's ``runs`` table, with their SQL types.
+EXTRA_COLUMNS: dict[str, str] = {
+    "run_key": "TEXT",
+    "problem": "TEXT",
+    "hand": "TEXT",
+    "seed": "INTEGER",
+    "ik_calls": "INTEGER",
+    "state_checks": "INTEGER",
+    "motion_checks": "INTEGER",
+    "final_aperture": "REAL",
+}
+
+
+def default_problems_dir(robot: str = "panda") -> Path:
+    """``benchmarks/problems/<robot>`` of the source tree."""
+    return Path(__file__).resolve().parent.parent / "benchmarks" / "problems" / robot
+
+
+def find_problems(paths: Sequence[str | Path]) -> list[Path]:
+    """Scene files from directories (their ``*.toml``, sorted) and files.
+
+    Raises:
+        ConfigError: A path that does not exist, or no scene file at all.
+    """
+    found: list[Path] = []
+    for entry in paths:
+        path = Path(entry)
+        if path.is_dir():
+            found.extend(sorted(path.glob("*.toml")))
+        elif path.is_file():
+            found.append(path)
+        else:
+            raise ConfigError("problems", str(path), "an existing scene file or directory")
+    if not found:
+        raise ConfigError("problems", [str(p) for p in paths], "at least one scene TOML")
+    names = [p.stem for p in found]
+    if len(set(names)) != len(names):
+        raise ConfigError("problems", names, "scene files with distinct names")
+    return found
+
+
+def _planner_names(planners: Sequence[str]) -> list[str]:
+    from openup_ompl.planning import PLANNERS
+
+    names = [p.lower() for p in planners]
+    for name in names:
+        if name not in PLANNERS:
+            raise ConfigError("planner", name, f"one of {list(PLANNERS)}")
+    if not names:
+        raise ConfigError("planners", list(planners), "at least one planner")
+    return names
+
+
+def make_tasks(
+    problems: Sequence[Path],
+    planners: Sequence[str],
+    runs: int,
+    time_limit: float,
+    *,
+    hands: Sequence[str] = ("law",),
+    seed: int = 1,
+) -> list[Task]:
+    """The sweep: one task per problem x planner x hand x run.
+
+    Run ``i`` has seed ``seed + i`` for every problem, planner and hand, so the
+    configurations are compared on the same seeds.
+
+    Raises:
+        ConfigError: Unknown planner or hand, ``runs`` below 1, or a bad time limit.
+    """
+    names = _planner_names(planners)
+    if not (isinstance(runs, int) and runs >= 1):
+        raise ConfigError("runs", runs, "an integer >= 1")
+    if not (isinstance(time_limit, (int, float)) and 0 < time_limit < math.inf):
+        raise ConfigError("time", time_limit, "a positive number of seconds")
+    for hand in hands:
+        if hand not in HANDS:
+            raise ConfigError("hand", hand, f"one of {list(HANDS)}")
+    tasks = []
+    for problem in problems:
+        for name in names:
+            for hand in hands:
+                for i in range(runs):
+                    tasks.append(
+                        Task(
+                            key=f"{Path(problem).stem}-{name}-{hand}-{i:04d}",
+                            function="openup_ompl.benchmark:benchmark_run",
+                            kwargs={
+                                "problem": str(Path(problem).resolve()),
+                                "planner": name,
+                                "hand": hand,
+                                "time_limit": float(time_limit),
+                            },
+                            seed=seed + i,
+                        )
+                    )
+    return tasks
+
+
+def benchmark_run(
+    seed: int, problem: str, planner: str, hand: str, time_limit: float
+) -> dict[str, Any]:
+    """One run through ``ompl.tools.Benchmark`` (inside a task process).
+
+    Returns:
+        The record: OMPL's log text (``log``), OMPL's run properties (``time``,
+        ``solved``, ``length``, ...), and the extra counters of :data:`EXTRA_COLUMNS`.
+    """
+    from ompl import tools as ot
+
+    from openup_ompl.exceptions import InvalidProblem
+    from openup_ompl.planning import GraspPlanningSetup
+    from openup_ompl.scene import load_scene
+
+    name = Path(problem).stem
+    record: dict[str, Any] = {"problem": name, "planner": planner, "hand": hand, "seed": seed}
+    try:
+        setup = GraspPlanningSetup(load_scene(problem), fixed_hand="w" if hand == "fixed" else None)
+    except InvalidProblem as error:
+        # A setup that cannot start is a failed run with no OMPL log.
+        return {**record, "error": str(error), "solved": False, "time": time_limit}
+    instance = setup.make_planner(planner, seed)
+    if hand == "fixed":
+        instance.setName(f"{instance.getName()}_fixed_w")
+    setup.reseed(seed)
+    checker, ik = setup.checker, setup.ik
+    before = (checker.states_checked, checker.motions_checked, ik.calls)
+    bench = ot.Benchmark(setup.simple_setup, name)
+    bench.addPlanner(instance)
+    request = ot.Request()
+    request.maxTime = float(time_limit)
+    request.runCount = 1
+    request.displayProgress = False
+    request.saveConsoleOutput = False
+    bench.benchmark(request)
+    with tempfile.TemporaryDirectory() as tmp:
+        log = Path(tmp) / "run.log"
+        bench.saveResultsToFile(str(log))
+        record["log"] = log.read_text()
+    experiment = bench.getRecordedExperimentData()
+    props = experiment.planners[0].runs[0].to_dict()
+    record["planner_name"] = experiment.planners[0].name
+    record["time"] = float(props.get("time REAL", math.nan))
+    record["solved"] = str(props.get("solved BOOLEAN", "0")) in ("1", "True", "true")
+    length = props.get("solution length REAL")
+    record["length"] = float(length) if length not in (None, "") else None
+    record["ik_calls"] = ik.calls - before[2]
+    record["state_checks"] = checker.states_checked - before[0]
+    record["motion_checks"] = checker.motions_checked - before[1]
+    record["final_aperture"] = None
+    ss = setup.simple_setup
+    if record["solved"] and ss.haveExactSolutionPath():
+        dof = setup.problem.robot.arm_idx.size
+        last = ss.getSolutionPath().getStates()[-1]
+        arm = np.array([last[i] for i in range(dof)])
+        q = checker.full_q(arm)
+        # Sum of the hand joints (for the Panda, the gap between the fingers [m]).
+        record["final_aperture"] = float(np.sum(q[setup.problem.robot.hand_idx]))
+    return record
+
+
+_STATISTICS = "import sys; from ompl.ompl_benchmark_statistics import main; sys.exit(main())"
+
+
+def build_database(records: Sequence[dict[str, Any]], out: Path) -> Path:
+    """Write the OMPL logs, build ``benchmark.db`` with ``ompl_benchmark_statistics``
+    and add :data:`EXTRA_COLUMNS` to its ``runs`` table.
+
+    Raises:
+        OpenUpError: ``ompl_benchmark_statistics`` failed.
+    """
+    out = Path(out)
+    logs_dir = out / "logs"
+    logs_dir.mkdir(parents=True, exist_ok=True)
+    logged = [r for r in records if r.get("log")]
+    paths = []
+    for record in logged:
+        path = logs_dir / f"{record['key']}.log"
+        path.write_text(record["log"])
+        paths.append(str(path))
+    db = out / "benchmark.db"
+    db.unlink(missing_ok=True)
+    done = subprocess.run(
+        # OMPL's console script ``ompl_benchmark_statistics``, run by this interpreter.
+        [sys.executable, "-c", _STATISTICS, "-d", str(db), "-v", *paths],
+        capture_output=True,
+        text=True,
+    )
+    if done.returncode != 0 or not db.exists():
+        raise OpenUpError(f"ompl_benchmark_statistics failed: {done.stderr.strip()[-400:]}")
+    with sqlite3.connect(db) as conn:
+        # The logs were read in this order into a fresh database: experiment i+1 is log i.
+        ids = [row[0] for row in conn.execute("SELECT id FROM experiments ORDER BY id")]
+        if len(ids) != len(logged):
+            raise OpenUpError(f"{len(ids)} experiments in the database for {len(logged)} logs")
+        for column, kind in EXTRA_COLUMNS.items():
+            conn.execute(f"ALTER TABLE runs ADD COLUMN {column} {kind}")
+        sets = ", ".join(f"{c} = ?" for c in EXTRA_COLUMNS)
+        for experiment, record in zip(ids, logged, strict=True):
+            values = [record.get(c if c != "run_key" else "key") for c in EXTRA_COLUMNS]
+            conn.execute(f"UPDATE runs SET {sets} WHERE experimentid = ?", [*values, experiment])
+    return db
+
+
+def summarize(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Per (problem, planner, hand): runs, success, median and 95th-percentile solve time
+    (a failed run counts as its time), mean path length and counters of the solved runs."""
+    groups: dict[tuple[str, str, str], list[dict[str, Any]]] = {}
+    for record in records:
+        key = (record["problem"], record["planner"], record["hand"])
+        groups.setdefault(key, []).append(record)
+    rows = []
+    for (problem, planner, hand), group in groups.items():
+        times = np.array([float(r["time"]) for r in group])
+        solved = [r for r in group if r["solved"]]
+
+        def mean(field: str, rows: list[dict[str, Any]] = solved) -> float:
+            values = [float(r[field]) for r in rows if r.get(field) is not None]
+            return float(np.mean(values)) if values else math.nan
+
+        rows.append(
+            {
+                "problem": problem,
+                "planner": planner,
+                "hand": hand,
+                "runs": len(group),
+                "success": len(solved) / len(group),
+                "median_time": float(np.median(times)),
+                "p95_time": float(np.percentile(times, 95)),
+                "length": mean("length"),
+                "state_checks": mean("state_checks"),
+                "ik_calls": mean("ik_calls"),
+                "final_aperture": mean("final_aperture"),
+            }
+        )
+    return rows
+
+
+def plot_results(rows: Sequence[dict[str, Any]], out: Path) -> list[Path]:
+    """``solve_time.png`` (median bars, 95th-percentile whiskers, log scale) and
+    ``success.png`` per problem and planner configuration.
+
+    Raises:
+        MissingExtra: matplotlib is not installed.
+    """
+    from openup_ompl.figures import _pyplot
+
+    plt = _pyplot()
+    problems = sorted({r["problem"] for r in rows})
+    configs = sorted({(r["planner"], r["hand"]) for r in rows})
+    index = {(r["problem"], r["planner"], r["hand"]): r for r in rows}
+    width = 0.8 / max(1, len(configs))
+    written = []
+    for name, field, ylabel in (
+        ("solve_time.png", "median_time", "solve time [s] (median; bar to 95th pct)"),
+        ("success.png", "success", "success rate"),
+    ):
+        fig, ax = plt.subplots(figsize=(max(6.0, 1.3 * len(problems)), 4.0))
+        for j, (planner, hand) in enumerate(configs):
+            xs, ys, errs = [], [], []
+            for i, problem in enumerate(problems):
+                row = index.get((problem, planner, hand))
+                if row is None:
+                    continue
+                xs.append(i + (j - (len(configs) - 1) / 2) * width)
+                ys.append(row[field])
+                errs.append(max(0.0, row["p95_time"] - row["median_time"]))
+            label = planner if hand == "law" else f"{planner} (fixed w)"
+            if field == "median_time":
+                ax.bar(xs, ys, width, yerr=[[0] * len(errs), errs], label=label, capsize=2)
+                ax.set_yscale("log")
+            else:
+                ax.bar(xs, ys, width, label=label)
+                ax.set_ylim(0, 1.05)
+        ax.set_xticks(range(len(problems)), problems, rotation=30, ha="right")
+        ax.set_ylabel(ylabel)
+        ax.legend(fontsize="small")
+        fig.tight_layout()
+        path = Path(out) / name
+        fig.savefig(path, dpi=120)
+        plt.close(fig)
+        written.append(path)
+    return written
+
+
+def markdown_table(rows: Sequence[dict[str, Any]]) -> str:
+    """The results table (times in ms)."""
+    lines = [
+        "| problem | planner | hand | runs | success | median [ms] | p95 [ms] | length [rad] |",
+        "|:--|:--|:--|--:|--:|--:|--:|--:|",
+    ]
+    for r in rows:
+        lines.append(
+            f"| {r['problem']} | {r['planner']} | {r['hand']} | {r['runs']} | "
+            f"{100 * r['success']:.0f} % | {1e3 * r['median_time']:.0f} | "
+            f"{1e3 * r['p95_time']:.0f} | {r['length']:.2f} |"
+        )
+    return "\n".join(lines)
+
+
+@dataclass(frozen=True)
+class BenchmarkResult:
+    """Where a benchmark wrote its outputs, and its summary rows."""
+
+    database: Path
+    logs: Path
+    summary: Path
+    plots: list[Path]
+    rows: list[dict[str, Any]]
+    records: list[dict[str, Any]]
+
+
+def run_benchmark(
+    problems: Sequence[str | Path],
+    planners: Sequence[str],
+    out: str | Path,
+    *,
+    runs: int = 10,
+    time_limit: float = 5.0,
+    fixed_hand: bool = False,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    seed: int = 1,
+    plots: bool = True,
+    quiet: bool = False,
+) -> BenchmarkResult:
+    """Run the sweep (skipping finished runs), merge it into the database, summarise.
+
+    Args:
+        problems: Scene files or directories of them.
+        planners: Names from :data:`~openup_ompl.planning.PLANNERS`.
+        out: Output directory (shards, logs, ``benchmark.db``, ``summary.json``, plots).
+        runs: Runs per problem, planner and hand.
+        time_limit: Time limit per run [s].
+        fixed_hand: Also run the fixed preshape (hand frozen at ``w``).
+        workers: Local task processes at a time (default: the usable cores).
+        scheduler: Dask scheduler address; ``None`` runs locally.
+        seed: Seed of run 0 (run ``i`` uses ``seed + i``).
+        plots: Draw the PNG plots (skipped with a note when matplotlib is missing).
+        quiet: No progress on stderr.
+    """
+    out = Path(out)
+    hands = ("law", "fixed") if fixed_hand else ("law",)
+    tasks = make_tasks(find_problems(problems), planners, runs, time_limit, hands=hands, seed=seed)
+    run_tasks(tasks, out / "shards", workers=workers, scheduler=scheduler, quiet=quiet)
+    records = load_records(tasks, out / "shards")
+    db = build_database(records, out)
+    rows = summarize(records)
+    summary = out / "summary.json"
+    summary.write_text(json.dumps({"rows": rows}, indent=1, default=str) + "\n")
+    drawn: list[Path] = []
+    if plots:
+        from openup_ompl.figures import MissingExtra
+
+        try:
+            drawn = plot_results(rows, out)
+        except MissingExtra as error:
+            print(f"no plots: {error}", file=sys.stderr)
+    return BenchmarkResult(db, out / "logs", summary, drawn, rows, records)
+
+
+def benchmark_command(args: Any) -> int:
+    """``openup-ompl benchmark``: run, then print the table and where the outputs are."""
+    problems = args.problems or [default_problems_dir()]
+    result = run_benchmark(
+        problems,
+        args.planners,
+        args.out,
+        runs=args.runs,
+        time_limit=args.time,
+        fixed_hand=args.fixed_hand,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        seed=args.seed,
+        quiet=args.quiet,
+    )
+    print(markdown_table(result.rows))
+    print(f"OMPL logs in {result.logs}")
+    print(f"database (Planner Arena) written to {result.database}")
+    print(f"summary written to {result.summary}")
+    for plot in result.plots:
+        print(f"plot written to {plot}")
+    return 0

@@ -1,0 +1,338 @@
+"""One executor for sweeps of independent runs: a local pool, or a Dask cluster.
+
+A sweep is a list of :class:`Task`: a small JSON-able description (a stable ``key``, the
+``"module:function"`` to call, its keyword arguments and a ``seed``). Every task runs in a
+fresh Python process (``python -m openup_ompl.executor``), because OMPL's random generator
+can only be seeded before any OMPL object exists in a process: the same seed then gives
+the same record whichever executor ran it. The function rebuilds everything it needs from
+files (OMPL objects do not pickle) and returns a JSON-able dict, the run's record.
+
+Each record lands in its own shard file ``<shards>/<key>.json``, written atomically
+(temporary file + ``os.replace``), so:
+
+- a rerun skips every task whose shard exists (finished runs are never redone);
+- a run whose process dies (killed, crashed) leaves no shard and is retried, up to
+  ``retries`` times; a run is counted once because its shard is keyed by the task key;
+- :func:`load_records` merges the shards into one list, in task order.
+
+Executors: :func:`run_tasks` with ``scheduler=None`` runs ``workers`` task processes at a
+time on this machine; with a scheduler address (``tcp://host:8786``) it submits the tasks
+to a Dask distributed cluster (``pip install "openup-ompl[distributed]"``), where each
+Dask task launches the task process on its worker and Dask retries a task whose worker
+died.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import os
+import subprocess
+import sys
+import tempfile
+from collections.abc import Callable, Iterable, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+from openup_ompl.exceptions import ConfigError, OpenUpError
+
+__all__ = [
+    "SweepFailed",
+    "Task",
+    "load_records",
+    "run_task_process",
+    "run_tasks",
+    "selfcheck_task",
+    "shard_path",
+]
+
+
+class SweepFailed(OpenUpError):
+    """Some tasks of a sweep failed on every attempt.
+
+    Attributes:
+        failures: Task key -> the last error message.
+    """
+
+    def __init__(self, failures: dict[str, str]) -> None:
+        self.failures = dict(failures)
+        first = next(iter(self.failures.items()))
+        super().__init__(
+            f"{len(self.failures)} task(s) failed on every attempt; first {first[0]!r}: {first[1]}"
+        )
+
+
+@dataclass(frozen=True)
+class Task:
+    """One independent run of a sweep.
+
+    Attributes:
+        key: Stable identifier, unique in the sweep; names the shard file (letters,
+            digits, ``-``, ``_`` and ``.`` only).
+        function: ``"module:function"`` called as ``function(seed=seed, **kwargs)`` in a
+            fresh process; returns a JSON-able dict.
+        kwargs: JSON-able keyword arguments (paths, names, numbers).
+        seed: Seeds OMPL's process-wide generator before the function runs, and is passed
+            to it.
+    """
+
+    key: str
+    function: str
+    kwargs: dict[str, Any] = field(default_factory=dict)
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if not self.key or not all(ch.isalnum() or ch in "-_." for ch in self.key):
+            raise ConfigError("task key", self.key, "letters, digits, '-', '_' or '.'")
+        if ":" not in self.function:
+            raise ConfigError("task function", self.function, "'module:function'")
+
+    def to_json(self) -> str:
+        return json.dumps(asdict(self), sort_keys=True)
+
+
+def shard_path(shards: Path, key: str) -> Path:
+    """The shard file of the task ``key``."""
+    return Path(shards) / f"{key}.json"
+
+
+def _write_atomic(path: Path, text: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w") as handle:
+            handle.write(text)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def _execute(task: Task, shards: Path) -> dict[str, Any]:
+    """Inside the task process: seed OMPL, call the function, write the shard."""
+    from ompl import util as ompl_util
+
+    ompl_util.RNG.setSeed(int(task.seed))
+    ompl_util.setLogLevel(ompl_util.LOG_ERROR)
+    module, _, name = task.function.partition(":")
+    function: Callable[..., dict[str, Any]] = getattr(importlib.import_module(module), name)
+    record = dict(function(seed=task.seed, **task.kwargs))
+    record.setdefault("key", task.key)
+    _write_atomic(shard_path(shards, task.key), json.dumps(record, sort_keys=True) + "\n")
+    return record
+
+
+def run_task_process(task_json: str, shards: str, timeout: float | None = None) -> str:
+    """Run one task in a fresh Python process; returns its key once its shard exists.
+
+    This is what each executor calls (a Dask worker included): it is a plain function of
+    strings, so it pickles. A process that dies leaves no shard and raises
+    ``RuntimeError``, which makes the executor retry the task.
+    """
+    task = Task(**json.loads(task_json))
+    target = shard_path(Path(shards), task.key)
+    if target.exists():
+        return task.key
+    done = subprocess.run(
+        [sys.executable, "-m", "openup_ompl.executor", str(shards)],
+        input=task_json,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
+    if done.returncode != 0 or not target.exists():
+        tail = done.stderr.strip().splitlines()[-1:] or [f"exit status {done.returncode}"]
+        raise RuntimeError(f"task {task.key} process exited {done.returncode}: {tail[0]}")
+    return task.key
+
+
+class _Progress:
+    def __init__(self, total: int, quiet: bool) -> None:
+        self.total = total
+        self.done = 0
+        self.on = not quiet and total > 0 and sys.stderr.isatty()
+
+    def step(self, note: str = "") -> None:
+        self.done += 1
+        if self.on:
+            end = "\n" if self.done == self.total else ""
+            print(f"\r{self.done}/{self.total} runs {note}", end=end, file=sys.stderr, flush=True)
+
+
+def _check_keys(tasks: Sequence[Task]) -> None:
+    seen: set[str] = set()
+    for task in tasks:
+        if task.key in seen:
+            raise ConfigError("task key", task.key, "keys unique in the sweep")
+        seen.add(task.key)
+
+
+def run_tasks(
+    tasks: Sequence[Task],
+    shards: str | Path,
+    *,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    retries: int = 2,
+    timeout: float | None = None,
+    quiet: bool = False,
+) -> list[str]:
+    """Run the tasks whose shard is missing; returns the keys that ran now.
+
+    Args:
+        tasks: The sweep (keys unique).
+        shards: Directory of the shard files.
+        workers: Task processes at a time on this machine (default: the usable cores).
+            Ignored with ``scheduler``.
+        scheduler: Address of a Dask distributed scheduler; ``None`` runs locally.
+        retries: Attempts after the first for a task whose process died or failed.
+        timeout: Wall-clock limit [s] per task process (``None``: none).
+        quiet: No progress on stderr (it is also off when stderr is not a terminal).
+
+    Raises:
+        ConfigError: Duplicate keys, ``workers`` below 1 or ``retries`` below 0.
+        SweepFailed: Some task failed on every attempt (the others' shards are kept).
+    """
+    _check_keys(tasks)
+    if workers is not None and workers < 1:
+        raise ConfigError("workers", workers, "at least 1")
+    if retries < 0:
+        raise ConfigError("retries", retries, "0 or more")
+    shards = Path(shards)
+    shards.mkdir(parents=True, exist_ok=True)
+    todo = [t for t in tasks if not shard_path(shards, t.key).exists()]
+    if not todo:
+        return []
+    progress = _Progress(len(todo), quiet)
+    if scheduler is not None:
+        failures = _run_dask(todo, shards, scheduler, retries, timeout, progress)
+    else:
+        count = workers or len(os.sched_getaffinity(0))
+        failures = _run_local(todo, shards, count, retries, timeout, progress)
+    if failures:
+        raise SweepFailed(failures)
+    return [t.key for t in todo]
+
+
+def _run_local(
+    todo: Sequence[Task],
+    shards: Path,
+    workers: int,
+    retries: int,
+    timeout: float | None,
+    progress: _Progress,
+) -> dict[str, str]:
+    # Threads only wait on the task processes, one fresh process per task: a killed
+    # process loses its run alone, which is resubmitted here.
+    failures: dict[str, str] = {}
+    attempts = dict.fromkeys((t.key for t in todo), 0)
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        pending: dict[Future[str], Task] = {
+            pool.submit(run_task_process, t.to_json(), str(shards), timeout): t for t in todo
+        }
+        while pending:
+            finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for future in finished:
+                task = pending.pop(future)
+                error = future.exception()
+                if error is None:
+                    progress.step(task.key)
+                    continue
+                attempts[task.key] += 1
+                if attempts[task.key] > retries:
+                    failures[task.key] = str(error)
+                    progress.step(f"{task.key} failed")
+                    continue
+                retry = pool.submit(run_task_process, task.to_json(), str(shards), timeout)
+                pending[retry] = task
+    return failures
+
+
+def _run_dask(
+    todo: Sequence[Task],
+    shards: Path,
+    scheduler: str,
+    retries: int,
+    timeout: float | None,
+    progress: _Progress,
+) -> dict[str, str]:
+    try:
+        from dask.distributed import Client, as_completed
+    except ImportError as error:  # pragma: no cover - depends on the environment
+        from openup_ompl.figures import MissingExtra
+
+        raise MissingExtra("dask[distributed]", "distributed") from error
+    failures: dict[str, str] = {}
+    with Client(scheduler, timeout="30s") as client:
+        futures = {
+            client.submit(
+                run_task_process,
+                t.to_json(),
+                str(shards),
+                timeout,
+                key=f"openup-{t.key}",
+                pure=False,
+                retries=retries,
+            ): t
+            for t in todo
+        }
+        for future in as_completed(futures):
+            task = futures[future]
+            if future.status == "finished":
+                progress.step(task.key)
+            else:
+                failures[task.key] = str(future.exception())
+                progress.step(f"{task.key} failed")
+    return failures
+
+
+def load_records(tasks: Iterable[Task], shards: str | Path) -> list[dict[str, Any]]:
+    """The records of the tasks that have a shard, in task order (one per key)."""
+    records = []
+    for task in tasks:
+        path = shard_path(Path(shards), task.key)
+        if path.exists():
+            records.append(json.loads(path.read_text()))
+    return records
+
+
+def selfcheck_task(seed: int, marker: str | None = None, fail: bool = False) -> dict[str, Any]:
+    """A cheap task that shows what the executor guarantees (used by its tests).
+
+    Returns draws from OMPL's process-wide generator (seeded by the executor) and the
+    process id. With ``marker``, the first run creates that file and kills its own
+    process (SIGKILL), as a crashed worker would; ``fail`` raises instead.
+    """
+    import signal
+
+    from ompl import util as ompl_util
+
+    if fail:
+        raise RuntimeError("selfcheck_task asked to fail")
+    if marker is not None and not Path(marker).exists():
+        Path(marker).write_text(str(os.getpid()))
+        os.kill(os.getpid(), signal.SIGKILL)
+    rng = ompl_util.RNG()
+    return {
+        "seed": seed,
+        "draws": [rng.uniformReal(0.0, 1.0) for _ in range(3)],
+        "pid": os.getpid(),
+    }
+
+
+def _main(argv: Sequence[str]) -> int:
+    """Task process entry: the task JSON on stdin, the shard directory as argument."""
+    task = Task(**json.loads(sys.stdin.read()))
+    _execute(task, Path(argv[0]))
+    return 0
+
+
+if __name__ == "__main__":
+    status = _main(sys.argv[1:])
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(status)

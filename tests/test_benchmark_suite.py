@@ -1,0 +1,136 @@
+"""The problem suite and the benchmark runner: OMPL logs, database with extra columns."""
+
+from __future__ import annotations
+
+import sqlite3
+from pathlib import Path
+
+import pytest
+from ompl import util as ompl_util
+
+import openup_ompl as oo
+from openup_ompl.__main__ import main
+from openup_ompl.benchmark import (
+    EXTRA_COLUMNS,
+    default_problems_dir,
+    find_problems,
+    make_tasks,
+    run_benchmark,
+)
+from openup_ompl.exceptions import ConfigError
+
+ompl_util.setLogLevel(ompl_util.LOG_ERROR)
+
+SUITE = sorted(default_problems_dir().glob("*.toml"))
+
+
+def test_suite_has_the_eight_scenes() -> None:
+    """The Panda suite holds the eight MotionBenchMaker-style scenes."""
+    names = {p.stem for p in SUITE}
+    assert {
+        "table_pick",
+        "table_under_pick",
+        "shelf_small",
+        "shelf_tall",
+        "box",
+        "cage",
+        "clutter",
+        "narrow_passage",
+    } <= names
+
+
+@pytest.mark.parametrize("path", SUITE, ids=[p.stem for p in SUITE])
+def test_suite_problem_loads_with_reachable_grasp(path: Path) -> None:
+    """Every suite scene loads, its start is free and its grasp has a free IK solution."""
+    setup = oo.GraspPlanningSetup(oo.load_scene(path))
+    assert setup.goal.solutions, path.name
+    assert setup.checker.is_valid(setup.goal.solutions[0])
+
+
+def test_two_problem_benchmark_database(tmp_path: Path) -> None:
+    """2 problems x 2 planners x 2 runs give 8 runs rows with the extra columns filled."""
+    problems = [default_problems_dir() / "table_pick.toml", default_problems_dir() / "clutter.toml"]
+    result = run_benchmark(
+        problems,
+        ["ikbirrt", "rrtconnect"],
+        tmp_path,
+        runs=2,
+        time_limit=5.0,
+        workers=2,
+        quiet=True,
+        plots=False,
+    )
+    assert len(list(result.logs.glob("*.log"))) == 8
+    with sqlite3.connect(result.database) as conn:
+        columns = [row[1] for row in conn.execute("PRAGMA table_info(runs)")]
+        assert set(EXTRA_COLUMNS) <= set(columns)
+        assert {"time", "solved", "solution_length"} <= set(columns)
+        rows = conn.execute(
+            "SELECT run_key, problem, hand, seed, ik_calls, state_checks, final_aperture, "
+            "solved, plannerConfigs.name FROM runs "
+            "JOIN plannerConfigs ON plannerConfigs.id = runs.plannerid"
+        ).fetchall()
+        experiments = {r[0] for r in conn.execute("SELECT name FROM experiments")}
+    assert sorted(r[0] for r in rows) == sorted(
+        f"{p}-{n}-law-{i:04d}"
+        for p in ("table_pick", "clutter")
+        for n in ("ikbirrt", "rrtconnect")
+        for i in range(2)
+    )
+    assert experiments == {"table_pick", "clutter"}
+    assert {r[8] for r in rows} == {"geometric_IKBiRRT", "geometric_RRTConnect"}
+    for key, problem, hand, seed, ik_calls, checks, aperture, solved, _ in rows:
+        assert key.startswith(problem) and hand == "law" and seed in (1, 2)
+        assert ik_calls > 0 and checks > 0
+        if solved:  # the law closes the hand to c at the grasp: 2 x 0.03 or 2 x 0.035 m
+            assert aperture == pytest.approx(0.06 if problem == "table_pick" else 0.07, abs=1e-4)
+    assert {r["problem"] for r in result.rows} == {"table_pick", "clutter"}
+
+
+def test_fixed_hand_configuration_is_a_separate_planner(tmp_path: Path) -> None:
+    """--fixed-hand adds runs named <planner>_fixed_w whose hand stays at w."""
+    result = run_benchmark(
+        [default_problems_dir() / "table_pick.toml"],
+        ["rrtconnect"],
+        tmp_path,
+        runs=1,
+        fixed_hand=True,
+        workers=2,
+        quiet=True,
+        plots=False,
+    )
+    with sqlite3.connect(result.database) as conn:
+        rows = dict(
+            conn.execute(
+                "SELECT plannerConfigs.name, final_aperture FROM runs "
+                "JOIN plannerConfigs ON plannerConfigs.id = runs.plannerid"
+            ).fetchall()
+        )
+    assert set(rows) == {"geometric_RRTConnect", "geometric_RRTConnect_fixed_w"}
+    assert rows["geometric_RRTConnect_fixed_w"] == pytest.approx(0.08, abs=1e-4)
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [{"planners": ["nosuch"]}, {"runs": 0}, {"runs": -3}, {"time_limit": 0.0}],
+)
+def test_bad_benchmark_input_raises_config_error(kwargs: dict) -> None:
+    """An unknown planner, runs <= 0 or a bad time limit is a ConfigError."""
+    args = {"planners": ["ikbirrt"], "runs": 1, "time_limit": 1.0, **kwargs}
+    with pytest.raises(ConfigError):
+        make_tasks(SUITE[:1], args["planners"], args["runs"], args["time_limit"])
+
+
+def test_missing_problem_dir_raises_config_error(tmp_path: Path) -> None:
+    """A problems path that does not exist, or holds no scene, is a ConfigError."""
+    with pytest.raises(ConfigError, match="nowhere"):
+        find_problems([tmp_path / "nowhere"])
+    with pytest.raises(ConfigError):
+        find_problems([tmp_path])
+
+
+def test_cli_bad_benchmark_input_exits_2(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """openup-ompl benchmark with an unknown planner exits 2 with one line naming it."""
+    status = main(["benchmark", "--planners", "nosuch", "--out", str(tmp_path), "--quiet"])
+    assert status == 2
+    assert "nosuch" in capsys.readouterr().err
