@@ -6,7 +6,8 @@ For a straight joint-space motion ``a -> b``, no point of the robot moves farthe
 the moves add up along the chain (triangle inequality). ``W_i`` bounds that distance over
 every configuration from the URDF's link offsets, prismatic travel and each collision
 geometry's bounding sphere. The hand follows the law, so the finger joints move too: by
-at most ``|slope|`` times the change of ``d``, itself bounded through the palm's own move.
+at most ``|slope|`` times the change of ``d``, itself bounded through the palm's own move,
+and a point moves only with the finger joints of its own chain (:func:`hand_rate`).
 
 Checking states no more than ``resolution`` apart in this bound, against obstacles padded
 by ``resolution / 2``, proves the whole motion collision-free with the unpadded
@@ -118,5 +119,30 @@ def motion_weights(robot: Robot, law: HandLaw, start_distance: float) -> np.ndar
     weights = np.array([_joint_weight(robot, j) for j in arm_ids])
     if law.fixed is not None:
         return weights
-    hand_rate = float(np.sum(np.abs(law.low_slope) * [_joint_weight(robot, j) for j in hand_ids]))
-    return weights + hand_rate * distance_rates(robot, law, start_distance)
+    return weights + hand_rate(robot, hand_ids, law) * distance_rates(robot, law, start_distance)
+
+
+def hand_rate(robot: Robot, hand_ids: list[int], law: HandLaw) -> float:
+    """Bound [m per unit of ``d``] on how far any robot point moves through the fingers'
+    own motion under the law.
+
+    A point moves only with the hand joints on its own chain, so the bound is the largest
+    sum of ``|slope_j| * W_j`` along one chain (one finger), not the sum over the whole
+    hand: each finger of a multi-finger hand is a separate chain from the palm.
+    """
+    model = robot.model
+    terms = dict(
+        zip(
+            hand_ids,
+            np.abs(law.low_slope) * [_joint_weight(robot, j) for j in hand_ids],
+            strict=True,
+        )
+    )
+    chains = []
+    for joint_id in hand_ids:
+        total = 0.0
+        while joint_id != 0:
+            total += float(terms.get(joint_id, 0.0))
+            joint_id = model.parents[joint_id]
+        chains.append(total)
+    return max(chains, default=0.0)

@@ -9,12 +9,15 @@ every segment is re-interpolated finer than the planner checked it.
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
 from typing import Any
 
 import coal
 import numpy as np
 import pinocchio as pin
+
+_THREADS = max(1, len(os.sched_getaffinity(0)))
 
 
 def paper_open_hand(d: float, law: dict[str, Any]) -> np.ndarray:
@@ -95,19 +98,30 @@ def recheck_plan(plan: dict[str, Any], finer: int = 10, resolution: float = 0.01
 
     path = np.array(plan["path"], dtype=float)
     hand_error = max(float(np.max(np.abs(row[hand_q] - law_hand(row)))) for row in path)
-    colliding: list[int] = []
-    states = 0
+    # Every segment re-interpolated at resolution / finer, each shared end state once; the
+    # whole path then goes to Pinocchio's parallel pair loop in one batch (meshes, no GJK
+    # warm start, so no answer depends on the query before it).
+    first = path[0].copy()
+    first[hand_q] = law_hand(first)
+    columns, segment_of = [first], [0]
     for i in range(len(path) - 1):
         a, b = path[i, arm_q], path[i + 1, arm_q]
         steps = max(1, math.ceil(float(np.linalg.norm(b - a)) / (resolution / finer)))
-        for k in range(steps + 1):
+        for k in range(1, steps + 1):
             q = path[i].copy()
             q[arm_q] = a + (b - a) * (k / steps)
             q[hand_q] = law_hand(q)
-            states += 1
-            if pin.computeCollisions(model, data, geometry, geometry_data, q, True):
-                colliding.append(i)
-                break
+            columns.append(q)
+            segment_of.append(i)
+    pool = pin.GeometryPool(model, geometry, _THREADS)
+    for geometry_data in pool.getGeometryDatas():
+        for request in geometry_data.collisionRequests:
+            request.gjk_initial_guess = coal.GJKInitialGuess.DefaultGuess
+    hits = pin.computeCollisionsInParallel(
+        _THREADS, pool, np.asfortranarray(np.array(columns).T), True, False
+    )
+    colliding = sorted({segment_of[k] for k in np.flatnonzero(hits)})
+    states = len(columns)
     final = palm_pose(path[-1])
     error = pin.log6(final.actInv(grasp)).vector
     return Recheck(

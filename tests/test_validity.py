@@ -12,7 +12,9 @@ from ompl import util as ompl_util
 from recheck import recheck_plan
 
 import openup_ompl as oo
+from openup_ompl._resources import data_dir
 from openup_ompl.collision import CollisionWorld
+from openup_ompl.motion_bound import hand_rate
 
 ompl_util.setLogLevel(ompl_util.LOG_ERROR)
 
@@ -50,10 +52,19 @@ def test_ompl_checker_equals_law_and_collision(setup: oo.GraspPlanningSetup) -> 
     assert 0 < sum(verdicts) < len(verdicts)
 
 
-def test_motion_bound_covers_every_geometry(setup: oo.GraspPlanningSetup) -> None:
-    """No collision geometry's reference point moves farther than the displacement bound."""
-    checker = setup.checker
-    robot = setup.problem.robot
+@pytest.fixture(scope="module", params=sorted(oo.available_robots()))
+def robot_setup(request: pytest.FixtureRequest) -> oo.GraspPlanningSetup:
+    """The first shipped scene of each robot."""
+    return oo.GraspPlanningSetup(
+        oo.load_scene(sorted(data_dir("scenes").glob(f"{request.param}_*.toml"))[0])
+    )
+
+
+def test_motion_bound_covers_every_geometry(robot_setup: oo.GraspPlanningSetup) -> None:
+    """No collision geometry's reference point moves farther than the displacement bound,
+    on random motions and on motions near the grasp, where the fingers follow the law."""
+    checker = robot_setup.checker
+    robot = robot_setup.problem.robot
     model, geometry = robot.model, robot.collision_model
     data, geometry_data = model.createData(), geometry.createData()
 
@@ -62,12 +73,50 @@ def test_motion_bound_covers_every_geometry(setup: oo.GraspPlanningSetup) -> Non
         return np.array([p.translation.copy() for p in geometry_data.oMg])
 
     rng = np.random.default_rng(1)
-    for _ in range(200):
-        a = rng.uniform(robot.arm_lower, robot.arm_upper)
-        b = a + rng.normal(0.0, 0.2, a.size)
-        b = np.clip(b, robot.arm_lower, robot.arm_upper)
+    grasp = robot_setup.goal.solutions[0]
+    hand_moved = 0
+    for k in range(300):
+        centre = rng.uniform(robot.arm_lower, robot.arm_upper) if k % 2 else grasp
+        a = np.clip(centre + rng.normal(0.0, 0.05, centre.size), robot.arm_lower, robot.arm_upper)
+        b = np.clip(a + rng.normal(0.0, 0.1, a.size), robot.arm_lower, robot.arm_upper)
+        hand_a, hand_b = (checker.full_q(x)[robot.hand_idx] for x in (a, b))
+        hand_moved += not np.allclose(hand_a, hand_b)
         moved = np.max(np.linalg.norm(placements(b) - placements(a), axis=1))
         assert moved <= float(np.abs(b - a) @ checker.motion_weights) + 1e-12
+    assert hand_moved >= 50
+
+
+def test_hand_rate_bounds_finger_motion(robot_setup: oo.GraspPlanningSetup) -> None:
+    """With the arm still, no extreme point of a geometry moves farther than
+    ``hand_rate * |d1 - d2|`` when the law moves the fingers from ``d1`` to ``d2``."""
+    robot, law = robot_setup.problem.robot, robot_setup.law
+    model, geometry = robot.model, robot.collision_model
+    data, geometry_data = model.createData(), geometry.createData()
+    rate = hand_rate(robot, [model.getJointId(n) for n in robot.hand_joints], law)
+    signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])
+    corners = []
+    for g in geometry.geometryObjects:
+        g.geometry.computeLocalAABB()
+        # Box corners, pulled in to Coal's bounding sphere (for a sphere: its surface).
+        half = 0.5 * (g.geometry.aabb_local.max_ - g.geometry.aabb_local.min_)
+        half *= min(1.0, g.geometry.aabb_radius / float(np.linalg.norm(half)))
+        corners.append(g.geometry.aabb_local.center() + signs * half)
+
+    def points(d: float) -> np.ndarray:
+        q = robot.full_q(robot_setup.goal.solutions[0], law(d))
+        pin.updateGeometryPlacements(model, data, geometry, geometry_data, q)
+        return np.concatenate(
+            [
+                c @ p.rotation.T + p.translation
+                for p, c in zip(geometry_data.oMg, corners, strict=True)
+            ]
+        )
+
+    rng = np.random.default_rng(4)
+    for d1, d2 in rng.uniform(0.0, law.mga, (100, 2)):
+        moved = np.max(np.linalg.norm(points(d2) - points(d1), axis=1))
+        assert moved <= rate * abs(d2 - d1) + 1e-12
+    assert rate > 0.0
 
 
 def test_batched_and_serial_motion_checks_agree(setup: oo.GraspPlanningSetup) -> None:
