@@ -7,7 +7,7 @@ limits, median over interleaved rounds; and the median solve time [s] of ``ikbir
 ``rrtconnect`` (+ ``IKGoalRegion``) over N seeds, with the success count. The robots'
 geometry and pair counts are listed beside, since the check cost scales with them.
 
-Run (about 3 minutes with the defaults on 2 cores)::
+Run (about 15 s with the defaults on 2 cores)::
 
     python benchmarks/bench_robots.py
     python benchmarks/bench_robots.py --seeds 20 --states 2000 --json bench_robots.json
@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from ompl import util as ou
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
@@ -98,6 +99,7 @@ def main() -> None:
     parser.add_argument("--json", metavar="PATH", help="also write the results as JSON")
     args = parser.parse_args()
     quiet = args.quiet or not sys.stderr.isatty()
+    ou.setLogLevel(ou.LOG_ERROR)
 
     info = _common.machine_info()
     scenes = demo_scenes()

@@ -300,12 +300,16 @@ def load_records(tasks: Iterable[Task], shards: str | Path) -> list[dict[str, An
     return records
 
 
-def selfcheck_task(seed: int, marker: str | None = None, fail: bool = False) -> dict[str, Any]:
+def selfcheck_task(
+    seed: int, marker: str | None = None, kill: str = "self", fail: bool = False
+) -> dict[str, Any]:
     """A cheap task that shows what the executor guarantees (used by its tests).
 
     Returns draws from OMPL's process-wide generator (seeded by the executor) and the
-    process id. With ``marker``, the first run creates that file and kills its own
-    process (SIGKILL), as a crashed worker would; ``fail`` raises instead.
+    process id. With ``marker``, the first run creates that file and is killed (SIGKILL):
+    its own process (``kill="self"``, a crashed run), or with ``kill="worker"`` the
+    process that launched it, then its own (a Dask worker dying mid-task). ``fail``
+    raises instead.
     """
     import signal
 
@@ -313,8 +317,12 @@ def selfcheck_task(seed: int, marker: str | None = None, fail: bool = False) -> 
 
     if fail:
         raise RuntimeError("selfcheck_task asked to fail")
+    if kill not in ("self", "worker"):
+        raise ConfigError("kill", kill, "'self' or 'worker'")
     if marker is not None and not Path(marker).exists():
-        Path(marker).write_text(str(os.getpid()))
+        Path(marker).write_text(str(os.getppid() if kill == "worker" else os.getpid()))
+        if kill == "worker":
+            os.kill(os.getppid(), signal.SIGKILL)
         os.kill(os.getpid(), signal.SIGKILL)
     rng = ompl_util.RNG()
     return {

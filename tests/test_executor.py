@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import pytest
 
+from openup_ompl.benchmark import default_problems_dir, make_tasks
 from openup_ompl.exceptions import ConfigError
 from openup_ompl.executor import SweepFailed, Task, load_records, run_tasks, shard_path
 
@@ -23,6 +25,14 @@ def _deterministic(records: list[dict]) -> list[dict]:
     return [{k: v for k, v in r.items() if k != "pid"} for r in records]
 
 
+def _local_cluster():  # type: ignore[no-untyped-def]
+    """A Dask cluster of two worker processes on loopback."""
+    distributed = pytest.importorskip("dask.distributed")
+    return distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
+    )
+
+
 def test_pool_records_are_seeded_per_task(tmp_path: Path) -> None:
     """Each task gets its own process, so a seed gives the same OMPL draws in any order."""
     tasks = _tasks(4)
@@ -37,16 +47,9 @@ def test_pool_records_are_seeded_per_task(tmp_path: Path) -> None:
 
 def test_dask_and_pool_give_the_same_records(tmp_path: Path) -> None:
     """A Dask LocalCluster on loopback and the local pool give identical records."""
-    distributed = pytest.importorskip("dask.distributed")
     tasks = _tasks(4)
     run_tasks(tasks, tmp_path / "pool", workers=2, quiet=True)
-    with distributed.LocalCluster(
-        n_workers=2,
-        threads_per_worker=1,
-        processes=True,
-        host="127.0.0.1",
-        dashboard_address=None,
-    ) as cluster:
+    with _local_cluster() as cluster:
         ran = run_tasks(tasks, tmp_path / "dask", scheduler=cluster.scheduler_address, quiet=True)
     assert sorted(ran) == sorted(t.key for t in tasks)
     pool = load_records(tasks, tmp_path / "pool")
@@ -55,21 +58,14 @@ def test_dask_and_pool_give_the_same_records(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize("use_dask", [False, True])
-def test_killed_worker_loses_no_run(tmp_path: Path, use_dask: bool) -> None:
+def test_killed_run_loses_no_run(tmp_path: Path, use_dask: bool) -> None:
     """A task whose process is killed the first time is retried; one shard per task."""
     tasks = _tasks(3)
     marker = tmp_path / "killed-once"
     tasks[1] = Task(key="t1", function=FUNCTION, kwargs={"marker": str(marker)}, seed=11)
     shards = tmp_path / "shards"
     if use_dask:
-        distributed = pytest.importorskip("dask.distributed")
-        with distributed.LocalCluster(
-            n_workers=2,
-            threads_per_worker=1,
-            processes=True,
-            host="127.0.0.1",
-            dashboard_address=None,
-        ) as cluster:
+        with _local_cluster() as cluster:
             run_tasks(tasks, shards, scheduler=cluster.scheduler_address, quiet=True)
     else:
         run_tasks(tasks, shards, workers=2, quiet=True)
@@ -79,6 +75,43 @@ def test_killed_worker_loses_no_run(tmp_path: Path, use_dask: bool) -> None:
     assert [r["key"] for r in records] == ["t0", "t1", "t2"]
     assert records[1]["pid"] != killed_pid
     assert sorted(p.name for p in shards.iterdir()) == ["t0.json", "t1.json", "t2.json"]
+
+
+def test_killed_dask_worker_loses_no_run(tmp_path: Path) -> None:
+    """A Dask worker process killed mid-task (SIGKILL) has its task rerun elsewhere; every
+    task lands exactly once."""
+    marker = tmp_path / "worker-killed"
+    tasks = _tasks(4)
+    tasks[2] = Task(
+        key="t2", function=FUNCTION, kwargs={"marker": str(marker), "kill": "worker"}, seed=12
+    )
+    shards = tmp_path / "shards"
+    with _local_cluster() as cluster:
+        run_tasks(tasks, shards, scheduler=cluster.scheduler_address, quiet=True)
+    worker_pid = int(marker.read_text())
+    with pytest.raises(ProcessLookupError):
+        os.kill(worker_pid, 0)  # that worker is gone
+    records = load_records(tasks, shards)
+    assert [r["key"] for r in records] == ["t0", "t1", "t2", "t3"]
+    assert sorted(p.name for p in shards.iterdir()) == ["t0.json", "t1.json", "t2.json", "t3.json"]
+
+
+def test_dask_and_pool_give_the_same_benchmark_records(tmp_path: Path) -> None:
+    """Real benchmark runs (IKBiRRT and RRTConnect, seeded) give the same counters and
+    results through a Dask LocalCluster as through the local pool."""
+    problem = default_problems_dir() / "table_pick.toml"
+    tasks = make_tasks([problem], ["ikbirrt", "rrtconnect"], runs=1, time_limit=5.0)
+    run_tasks(tasks, tmp_path / "pool", workers=2, quiet=True)
+    with _local_cluster() as cluster:
+        run_tasks(tasks, tmp_path / "dask", scheduler=cluster.scheduler_address, quiet=True)
+    fields = ("key", "seed", "solved", "length", "ik_calls", "state_checks", "motion_checks")
+
+    def same(records: list[dict]) -> list[tuple]:
+        return [tuple(r[f] for f in fields) for r in records]
+
+    pool, dask = load_records(tasks, tmp_path / "pool"), load_records(tasks, tmp_path / "dask")
+    assert len(pool) == 2 and all(r["solved"] for r in pool)
+    assert same(pool) == same(dask)
 
 
 def test_rerun_skips_finished_runs(tmp_path: Path) -> None:
