@@ -33,6 +33,11 @@ ANCHOR_STRIDE = 8
 #: collision-free down to a clearance of ``padding / 2**REFINE_LEVELS`` (0.375 mm by
 #: default), and motions through thinner margins are cut finer to stay exact.
 REFINE_LEVELS = 3
+#: Doublings of the padding tried first: a motion is first checked at states
+#: ``2**COARSE_LEVELS`` times farther apart against obstacles padded ``2**COARSE_LEVELS``
+#: times more (24 mm apart, 12 mm of padding by default), which is as exact and settles a
+#: motion far from every obstacle with a quarter of the states.
+COARSE_LEVELS = 2
 
 
 class CoupledChecker:
@@ -48,9 +53,14 @@ class CoupledChecker:
             ``resolution / 2``, the margin that makes motion checks exact. Where a state
             lacks that margin, halved margins (:data:`REFINE_LEVELS`) are tried and the
             motion around it is cut finer; ``0`` turns the guarantee off.
+        coarse_levels: Doublings of the padding and of the spacing of the first pass
+            over a motion (:data:`COARSE_LEVELS`); ``0`` checks every motion at
+            ``resolution`` directly.
 
     Attributes:
-        paddings: The margins [m] of the refinement levels, coarsest first.
+        paddings: The margins [m] of the levels, widest first: the coarse pass's
+            (:data:`COARSE_LEVELS`), the base ``padding``, then its halvings.
+        coarse_resolution: Spacing [m] of the coarse pass's states.
         states_checked: States checked so far (single and batched).
         motions_checked: Motions checked so far.
     """
@@ -62,23 +72,33 @@ class CoupledChecker:
         world: CollisionWorld | None = None,
         resolution: float = DEFAULT_RESOLUTION,
         padding: float | None = None,
+        coarse_levels: int = COARSE_LEVELS,
     ) -> None:
         if not (math.isfinite(resolution) and resolution > 0):
             raise ConfigError("resolution", resolution, "a positive distance [m]")
         padding = resolution / 2 if padding is None else padding
         if not (math.isfinite(padding) and padding >= 0):
             raise ConfigError("padding", padding, "a distance >= 0 [m]")
+        if not (isinstance(coarse_levels, int) and coarse_levels >= 0):
+            raise ConfigError("coarse_levels", coarse_levels, "an integer >= 0")
         self.problem = problem
         self.robot = problem.robot
         self.law = problem.hand_law if law is None else law
         self.world = CollisionWorld(problem, padding=padding) if world is None else world
         self.resolution = float(resolution)
-        self.paddings = [self.world.padding / 2**level for level in range(REFINE_LEVELS + 1)]
-        self._worlds = [self.world] + [
-            CollisionWorld(problem, num_threads=self.world.num_threads, padding=p)
-            for p in self.paddings[1:]
+        # No coarse pass without padding: it would not make a motion check exact.
+        self._coarse = coarse_levels if self.world.padding > 0 else 0
+        self.paddings = [
+            self.world.padding * 2.0**level for level in range(self._coarse, -REFINE_LEVELS - 1, -1)
+        ]
+        self._worlds = [
+            self.world
+            if level == self._coarse
+            else CollisionWorld(problem, num_threads=self.world.num_threads, padding=pad)
+            for level, pad in enumerate(self.paddings)
         ]
         self.finest_world = self._worlds[-1]
+        self.coarse_resolution = self.resolution * 2.0**self._coarse
         self._model = self.robot.model
         self._palm = self.robot.palm_frame_id
         start_q = self.robot.full_q(problem.start, self.law(1.0))
@@ -153,14 +173,18 @@ class CoupledChecker:
         return not self.finest_world.in_collision(self.robot.full_q(arm, hand))
 
     # -- motions --------------------------------------------------------------------------
-    def segment_count(self, a: np.ndarray, b: np.ndarray) -> int:
+    def segment_count(self, a: np.ndarray, b: np.ndarray, resolution: float | None = None) -> int:
         """Number of steps the motion ``a -> b`` is cut into so that no robot point moves
-        more than :attr:`resolution` between checked states."""
-        return max(1, math.ceil(float(np.abs(b - a) @ self.motion_weights) / self.resolution))
+        more than ``resolution`` (default :attr:`resolution`) between checked states."""
+        step = self.resolution if resolution is None else resolution
+        return max(1, math.ceil(float(np.abs(b - a) @ self.motion_weights) / step))
 
-    def interpolate(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        """Arm states checked along ``a -> b``, excluding ``a``, including ``b``: ``(n, dof)``."""
-        n = self.segment_count(a, b)
+    def interpolate(
+        self, a: np.ndarray, b: np.ndarray, resolution: float | None = None
+    ) -> np.ndarray:
+        """Arm states along ``a -> b`` no robot point ``resolution`` (default
+        :attr:`resolution`) apart, excluding ``a``, including ``b``: ``(n, dof)``."""
+        n = self.segment_count(a, b, resolution)
         t = np.arange(1, n + 1, dtype=float)[:, None] / n
         return a + t * (b - a)
 
@@ -222,29 +246,43 @@ class CoupledChecker:
     def check_motion(self, a: np.ndarray, b: np.ndarray) -> bool:
         """Whether the straight arm motion ``a -> b`` is collision-free with the coupled hand.
 
-        ``b`` is checked first; then ``a``, the intermediate states at :attr:`resolution`
-        and ``b`` go to the world in one parallel batch, which settles the usual cases:
-        every state keeps the full margin (free), or one collides even with the finest
-        margin (not free). Otherwise some states only keep a thinner margin and the
-        intervals next to them are cut finer until each is covered (:meth:`_certify`).
-        One core checks the states one by one instead (the batch measured slower there).
+        ``b`` is checked first. Then the coarse pass: states :attr:`coarse_resolution`
+        apart, in one parallel batch against the widest padding, settle a motion far from
+        every obstacle (all free), or one through an obstacle (a state collides even with
+        the finest margin). Otherwise ``a``, the intermediate states at :attr:`resolution`
+        and ``b`` go to the base padding in one batch: every state keeps that margin
+        (free), or one collides with the finest (not free), or some keep only a thinner
+        margin and the intervals next to them are cut finer until each is covered
+        (:meth:`_certify`). One core checks the states one by one instead (the batch
+        measured slower there).
         """
         if self.world.num_threads == 1:
             return self.check_motion_serial(a, b)
         self.motions_checked += 1
         if not self.is_valid(b):
             return False
+        if self._coarse:
+            arms = np.concatenate([a[None, :], self.interpolate(a, b, self.coarse_resolution)])
+            qs = self.full_qs(arms)
+            self.states_checked += arms.shape[0]
+            if not np.any(self._worlds[0].batch_in_collision(qs)):
+                return self._certify(
+                    arms, np.zeros(arms.shape[0], dtype=int), self.coarse_resolution
+                )
+            if np.any(self.finest_world.batch_in_collision(qs)):
+                return False
+        base = self._coarse
         arms = np.concatenate([a[None, :], self.interpolate(a, b)])
         qs = self.full_qs(arms)
         self.states_checked += arms.shape[0]
-        if not np.any(self.world.batch_in_collision(qs)):
-            return self._certify(arms, np.zeros(arms.shape[0], dtype=int))
+        if not np.any(self._worlds[base].batch_in_collision(qs)):
+            return self._certify(arms, np.full(arms.shape[0], base), self.resolution)
         if np.any(self.finest_world.batch_in_collision(qs)):
             return False
-        flags = self.world.batch_in_collision(qs, stop_at_first=False)
-        levels = np.zeros(arms.shape[0], dtype=int)
+        flags = self._worlds[base].batch_in_collision(qs, stop_at_first=False)
+        levels = np.full(arms.shape[0], base)
         for i in np.flatnonzero(flags):
-            level = self._level(qs[:, i])
+            level = self._level(qs[:, i], base + 1)
             if level is None:
                 return False
             levels[i] = level
@@ -256,34 +294,56 @@ class CoupledChecker:
         self.motions_checked += 1
         if not self.is_valid(b):
             return False
+        if self._coarse:
+            arms = np.concatenate([a[None, :], self.interpolate(a, b, self.coarse_resolution)])
+            verdict = self._coarse_serial(arms)
+            if verdict is not None:
+                return verdict
         arms = np.concatenate([a[None, :], self.interpolate(a, b)])
         levels = np.zeros(arms.shape[0], dtype=int)
         for i, arm in enumerate(arms):
             self.states_checked += 1
-            level = self._level(self.full_q(arm))
+            level = self._level(self.full_q(arm), self._coarse)
             if level is None:
                 return False
             levels[i] = level
         return self._certify(arms, levels)
 
-    def _level(self, q: np.ndarray) -> int | None:
-        """Index of the widest margin at which ``q`` is collision-free, or ``None``."""
-        for level, world in enumerate(self._worlds):
-            if not world.in_collision(q):
+    def _coarse_serial(self, arms: np.ndarray) -> bool | None:
+        """The coarse pass one state at a time: ``True`` if every state keeps the widest
+        margin, ``False`` if one collides with the finest, else ``None``."""
+        qs = [self.full_q(arm) for arm in arms]
+        self.states_checked += len(qs)
+        if not any(self._worlds[0].in_collision(q) for q in qs):
+            return self._certify(arms, np.zeros(arms.shape[0], dtype=int), self.coarse_resolution)
+        if any(self.finest_world.in_collision(q) for q in qs):
+            return False
+        return None
+
+    def _level(self, q: np.ndarray, first: int = 0) -> int | None:
+        """Index of the widest margin, from level ``first`` on, at which ``q`` is
+        collision-free, or ``None``."""
+        for level in range(first, len(self._worlds)):
+            if not self._worlds[level].in_collision(q):
                 return level
         return None
 
-    def _certify(self, arms: np.ndarray, levels: np.ndarray) -> bool:
+    def _certify(self, arms: np.ndarray, levels: np.ndarray, spacing: float | None = None) -> bool:
         """Whether the polyline through ``arms`` is collision-free, given each state's
         margin level.
 
         An interval is covered when no robot point moves more than twice the thinner of
         its two end margins along it: every point then stays within one margin of a
         checked position. Uncovered intervals are split at their middle, the new state
-        checked, until covered or a state collides even with the finest margin.
+        checked, until covered or a state collides even with the finest margin. Given
+        ``spacing``, the most any point moves along one interval (known when ``arms``
+        were interpolated at it), the intervals are covered at once if it is at most
+        twice the thinnest margin.
         """
         pads = np.asarray(self.paddings)
         if pads[-1] <= 0.0:  # no padding: plain resolution checks, no guarantee
+            return True
+        if spacing is not None and spacing <= 2 * pads[int(np.max(levels))]:
             return True
         reach = np.abs(np.diff(arms, axis=0)) @ self.motion_weights
         margin = pads[np.maximum(levels[:-1], levels[1:])]
@@ -300,7 +360,7 @@ class CoupledChecker:
                 continue
             middle = 0.5 * (start + end)
             self.states_checked += 1
-            level = self._level(self.full_q(middle))
+            level = self._level(self.full_q(middle), min(start_level, end_level))
             if level is None:
                 return False
             stack.append((start, start_level, middle, level))

@@ -15,6 +15,7 @@ import openup_ompl as oo
 from openup_ompl._resources import data_dir
 from openup_ompl.collision import CollisionWorld
 from openup_ompl.motion_bound import hand_rate
+from openup_ompl.validity import CoupledChecker
 
 ompl_util.setLogLevel(ompl_util.LOG_ERROR)
 
@@ -130,6 +131,33 @@ def test_batched_and_serial_motion_checks_agree(setup: oo.GraspPlanningSetup) ->
         verdicts.append(setup.checker.check_motion(a, b))
         assert verdicts[-1] == setup.checker.check_motion_serial(a, b)
     assert True in verdicts and False in verdicts
+
+
+def test_coarse_pass_gives_the_fine_verdicts_with_fewer_states(
+    setup: oo.GraspPlanningSetup,
+) -> None:
+    """The coarse pass (wider padding, sparser states) accepts and refuses the same
+    motions as checking at the resolution directly, and checks fewer states for the free
+    motions far from the obstacles."""
+    problem, law = setup.problem, setup.law
+    fine = CoupledChecker(problem, law, coarse_levels=0)
+    coarse = setup.checker
+    assert coarse.coarse_resolution == 4 * fine.coarse_resolution
+    arms = _valid_arms(setup, 80, seed=5)
+    verdicts, fewer = [], 0
+    for a, b in zip(arms[::2], arms[1::2], strict=True):
+        b = a + (b - a) * 0.4
+        counts = []
+        for checker in (fine, coarse):
+            before = checker.states_checked
+            verdict = checker.check_motion(a, b)
+            counts.append(checker.states_checked - before)
+            assert verdict == checker.check_motion_serial(a, b)
+        verdicts.append(verdict)
+        assert fine.check_motion(a, b) == verdict
+        fewer += verdict and counts[1] < counts[0] / 2
+    assert True in verdicts and False in verdicts
+    assert fewer >= 3
 
 
 def test_accepted_motions_are_free_at_any_resolution(setup: oo.GraspPlanningSetup) -> None:
