@@ -128,7 +128,7 @@ def build_parser() -> argparse.ArgumentParser:
         type=Path,
         nargs="+",
         default=None,
-        help="scene files or directories (default: the Panda suite, benchmarks/problems/panda)",
+        help="scene files or directories (default: every robot's suite, benchmarks/problems/*)",
     )
     bench.add_argument(
         "--planners", nargs="+", default=["ikbirrt", "rrtconnect"], help="planner names"

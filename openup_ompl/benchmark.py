@@ -35,13 +35,16 @@ from openup_ompl.executor import Task, load_records, run_tasks
 __all__ = [
     "EXTRA_COLUMNS",
     "HANDS",
+    "PROBLEMS_ROOT",
     "BenchmarkResult",
     "benchmark_run",
     "build_database",
+    "default_problems",
     "default_problems_dir",
     "find_problems",
     "make_tasks",
     "plot_results",
+    "problem_id",
     "run_benchmark",
     "summarize",
 ]
@@ -63,14 +66,33 @@ EXTRA_COLUMNS: dict[str, str] = {
 
 def default_problems_dir(robot: str = "panda") -> Path:
     """``benchmarks/problems/<robot>`` of the source tree."""
-    return Path(__file__).resolve().parent.parent / "benchmarks" / "problems" / robot
+    return PROBLEMS_ROOT / robot
+
+
+#: The problem suites of the source tree, one directory per robot.
+PROBLEMS_ROOT = Path(__file__).resolve().parent.parent / "benchmarks" / "problems"
+
+
+def default_problems() -> list[Path]:
+    """Every robot's suite: the directories under :data:`PROBLEMS_ROOT`."""
+    return sorted(path for path in PROBLEMS_ROOT.iterdir() if path.is_dir())
+
+
+def problem_id(path: Path) -> str:
+    """``<robot>.<scene>``: the problem's name in task keys, the database and the tables
+    (the suites of different robots use the same scene names)."""
+    from openup_ompl import _toml
+
+    robot = _toml.read_toml(Path(path), "scene file").get("robot", "")
+    return f"{Path(str(robot)).stem}.{Path(path).stem}"
 
 
 def find_problems(paths: Sequence[str | Path]) -> list[Path]:
     """Scene files from directories (their ``*.toml``, sorted) and files.
 
     Raises:
-        ConfigError: A path that does not exist, or no scene file at all.
+        ConfigError: A path that does not exist, no scene file at all, or two scenes of
+            the same :func:`problem_id`.
     """
     found: list[Path] = []
     for entry in paths:
@@ -83,9 +105,9 @@ def find_problems(paths: Sequence[str | Path]) -> list[Path]:
             raise ConfigError("problems", str(path), "an existing scene file or directory")
     if not found:
         raise ConfigError("problems", [str(p) for p in paths], "at least one scene TOML")
-    names = [p.stem for p in found]
+    names = [problem_id(p) for p in found]
     if len(set(names)) != len(names):
-        raise ConfigError("problems", names, "scene files with distinct names")
+        raise ConfigError("problems", names, "scenes with distinct <robot>.<scene> names")
     return found
 
 
@@ -133,7 +155,7 @@ def make_tasks(
                 for i in range(runs):
                     tasks.append(
                         Task(
-                            key=f"{Path(problem).stem}-{name}-{hand}-{i:04d}",
+                            key=f"{problem_id(Path(problem))}-{name}-{hand}-{i:04d}",
                             function="openup_ompl.benchmark:benchmark_run",
                             kwargs={
                                 "problem": str(Path(problem).resolve()),
@@ -162,7 +184,7 @@ def benchmark_run(
     from openup_ompl.planning import GraspPlanningSetup
     from openup_ompl.scene import load_scene
 
-    name = Path(problem).stem
+    name = problem_id(Path(problem))
     record: dict[str, Any] = {"problem": name, "planner": planner, "hand": hand, "seed": seed}
     try:
         setup = GraspPlanningSetup(load_scene(problem), fixed_hand="w" if hand == "fixed" else None)
@@ -411,7 +433,7 @@ def run_benchmark(
 
 def benchmark_command(args: Any) -> int:
     """``openup-ompl benchmark``: run, then print the table and where the outputs are."""
-    problems = args.problems or [default_problems_dir()]
+    problems = args.problems or default_problems()
     result = run_benchmark(
         problems,
         args.planners,

@@ -30,6 +30,7 @@ import os
 import subprocess
 import sys
 import tempfile
+import time
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
 from dataclasses import asdict, dataclass, field
@@ -151,16 +152,27 @@ def run_task_process(task_json: str, shards: str, timeout: float | None = None) 
 
 
 class _Progress:
+    """Runs done on stderr: one updating line on a terminal, else a line per tenth."""
+
     def __init__(self, total: int, quiet: bool) -> None:
         self.total = total
         self.done = 0
-        self.on = not quiet and total > 0 and sys.stderr.isatty()
+        self.on = not quiet and total > 0
+        self.tty = sys.stderr.isatty()
+        self.started = time.monotonic()
 
     def step(self, note: str = "") -> None:
         self.done += 1
-        if self.on:
+        if not self.on:
+            return
+        elapsed = time.monotonic() - self.started
+        left = elapsed / self.done * (self.total - self.done)
+        line = f"{self.done}/{self.total} runs, {elapsed:.0f} s, about {left:.0f} s left {note}"
+        if self.tty:
             end = "\n" if self.done == self.total else ""
-            print(f"\r{self.done}/{self.total} runs {note}", end=end, file=sys.stderr, flush=True)
+            print(f"\r{line:<78}", end=end, file=sys.stderr, flush=True)
+        elif self.done == self.total or self.done % max(1, self.total // 10) == 0:
+            print(line, file=sys.stderr, flush=True)
 
 
 def _check_keys(tasks: Sequence[Task]) -> None:
@@ -191,7 +203,8 @@ def run_tasks(
         scheduler: Address of a Dask distributed scheduler; ``None`` runs locally.
         retries: Attempts after the first for a task whose process died or failed.
         timeout: Wall-clock limit [s] per task process (``None``: none).
-        quiet: No progress on stderr (it is also off when stderr is not a terminal).
+        quiet: No progress on stderr (else one updating line on a terminal, a line per
+            tenth of the runs otherwise).
 
     Raises:
         ConfigError: Duplicate keys, ``workers`` below 1 or ``retries`` below 0.

@@ -12,9 +12,11 @@ import openup_ompl as oo
 from openup_ompl.__main__ import main
 from openup_ompl.benchmark import (
     EXTRA_COLUMNS,
+    default_problems,
     default_problems_dir,
     find_problems,
     make_tasks,
+    problem_id,
     run_benchmark,
 )
 from openup_ompl.exceptions import ConfigError
@@ -22,29 +24,51 @@ from openup_ompl.exceptions import ConfigError
 ompl_util.setLogLevel(ompl_util.LOG_ERROR)
 
 SUITE = sorted(default_problems_dir().glob("*.toml"))
+#: One suite per robot: every directory of ``benchmarks/problems``.
+SUITE_DIRS = default_problems()
+ALL_SCENES = [p for d in SUITE_DIRS for p in sorted(d.glob("*.toml"))]
+EIGHT_SCENES = {
+    "table_pick",
+    "table_under_pick",
+    "shelf_small",
+    "shelf_tall",
+    "box",
+    "cage",
+    "clutter",
+    "narrow_passage",
+}
 
 
-def test_suite_has_the_eight_scenes() -> None:
-    """The Panda suite holds the eight MotionBenchMaker-style scenes."""
-    names = {p.stem for p in SUITE}
-    assert {
-        "table_pick",
-        "table_under_pick",
-        "shelf_small",
-        "shelf_tall",
-        "box",
-        "cage",
-        "clutter",
-        "narrow_passage",
-    } <= names
+def test_every_robot_has_a_suite() -> None:
+    """The Panda, UR5 + Allegro and LWA3 + SDH suites are all there."""
+    assert {"panda", "ur5_allegro", "lwa3_sdh"} <= {d.name for d in SUITE_DIRS}
 
 
-@pytest.mark.parametrize("path", SUITE, ids=[p.stem for p in SUITE])
+@pytest.mark.parametrize("suite", SUITE_DIRS, ids=[d.name for d in SUITE_DIRS])
+def test_suite_has_the_eight_scenes(suite: Path) -> None:
+    """Every robot's suite holds the eight MotionBenchMaker-style scenes."""
+    assert {p.stem for p in suite.glob("*.toml")} >= EIGHT_SCENES
+
+
+@pytest.mark.parametrize("path", ALL_SCENES, ids=[f"{p.parent.name}/{p.stem}" for p in ALL_SCENES])
 def test_suite_problem_loads_with_reachable_grasp(path: Path) -> None:
     """Every suite scene loads, its start is free and its grasp has a free IK solution."""
-    setup = oo.GraspPlanningSetup(oo.load_scene(path))
+    problem = oo.load_scene(path)
+    assert problem.robot.name == path.parent.name, path
+    assert problem.object is not None, path
+    setup = oo.GraspPlanningSetup(problem)
     assert setup.goal.solutions, path.name
     assert setup.checker.is_valid(setup.goal.solutions[0])
+
+
+def test_suites_of_all_robots_make_distinct_problems() -> None:
+    """The suites share scene names; their problems are named <robot>.<scene>, one each."""
+    problems = find_problems(SUITE_DIRS)
+    names = [problem_id(p) for p in problems]
+    assert len(problems) == len(ALL_SCENES) == len(set(names))
+    assert {"panda.cage", "lwa3_sdh.cage", "ur5_allegro.cage"} <= set(names)
+    keys = [t.key for t in make_tasks(problems, ["ikbirrt"], runs=1, time_limit=1.0)]
+    assert len(set(keys)) == len(problems)
 
 
 def test_two_problem_benchmark_database(tmp_path: Path) -> None:
@@ -73,18 +97,19 @@ def test_two_problem_benchmark_database(tmp_path: Path) -> None:
         experiments = {r[0] for r in conn.execute("SELECT name FROM experiments")}
     assert sorted(r[0] for r in rows) == sorted(
         f"{p}-{n}-law-{i:04d}"
-        for p in ("table_pick", "clutter")
+        for p in ("panda.table_pick", "panda.clutter")
         for n in ("ikbirrt", "rrtconnect")
         for i in range(2)
     )
-    assert experiments == {"table_pick", "clutter"}
+    assert experiments == {"panda.table_pick", "panda.clutter"}
     assert {r[8] for r in rows} == {"geometric_IKBiRRT", "geometric_RRTConnect"}
     for key, problem, hand, seed, ik_calls, checks, aperture, solved, _ in rows:
         assert key.startswith(problem) and hand == "law" and seed in (1, 2)
         assert ik_calls > 0 and checks > 0
         if solved:  # the law closes the hand to c at the grasp: 2 x 0.03 or 2 x 0.035 m
-            assert aperture == pytest.approx(0.06 if problem == "table_pick" else 0.07, abs=1e-4)
-    assert {r["problem"] for r in result.rows} == {"table_pick", "clutter"}
+            expected = 0.06 if problem == "panda.table_pick" else 0.07
+            assert aperture == pytest.approx(expected, abs=1e-4)
+    assert {r["problem"] for r in result.rows} == {"panda.table_pick", "panda.clutter"}
 
 
 def test_fixed_hand_configuration_is_a_separate_planner(tmp_path: Path) -> None:
