@@ -8,9 +8,11 @@ every segment is re-interpolated finer than the planner checked it.
 
 from __future__ import annotations
 
+import json
 import math
 import os
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import coal
@@ -132,3 +134,15 @@ def recheck_plan(plan: dict[str, Any], finer: int = 10, resolution: float = 0.01
         rotation_error=float(np.linalg.norm(error[3:])),
         start_error=float(np.max(np.abs(path[0, arm_q] - np.array(plan["start"])))),
     )
+
+
+def assert_plan_rechecks(plan: Any, directory: Path) -> None:
+    """Save a plan (an ``openup_ompl.Plan``), reload its file and re-check it: start, grasp
+    pose, hand law, no collision."""
+    data = json.loads(plan.save(directory / f"{plan.planner}-{plan.seed}.json").read_text())
+    result = recheck_plan(data)
+    assert result.start_error < 1e-9
+    assert result.colliding == [], f"seed {plan.seed}: segments {result.colliding} collide"
+    assert result.position_error <= 1e-3
+    assert result.rotation_error <= 1e-2
+    assert result.hand_error < 1e-9

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 import pytest
 from ompl import util as ompl_util
-from recheck import recheck_plan
+from recheck import assert_plan_rechecks
 
 import openup_ompl as oo
 
@@ -29,17 +28,6 @@ def default_setup(default_problem: oo.Problem) -> oo.GraspPlanningSetup:
     return oo.GraspPlanningSetup(default_problem)
 
 
-def _check_plan_file(plan: oo.Plan, tmp_path: Path) -> None:
-    """Save, reload and re-check a plan: start, grasp pose, law, no collision."""
-    data = json.loads(plan.save(tmp_path / f"{plan.planner}-{plan.seed}.json").read_text())
-    result = recheck_plan(data)
-    assert result.start_error < 1e-9
-    assert result.colliding == [], f"segments {result.colliding} collide"
-    assert result.position_error <= 1e-3
-    assert result.rotation_error <= 1e-2
-    assert result.hand_error < 1e-9
-
-
 @pytest.mark.parametrize("planner", ["ikbirrt", "rrtconnect"])
 def test_default_scene_solved_on_19_of_20_seeds(
     default_setup: oo.GraspPlanningSetup, planner: str, tmp_path: Path
@@ -52,7 +40,7 @@ def test_default_scene_solved_on_19_of_20_seeds(
         except oo.PlanningFailed:
             continue
         solved += 1
-        _check_plan_file(plan, tmp_path)
+        assert_plan_rechecks(plan, tmp_path)
     assert solved >= 19
 
 
@@ -62,13 +50,13 @@ def test_other_scenes_solved_and_recheck(scene: str, planner: str, tmp_path: Pat
     """A side grasp under a shelf and the CONTRACT's example: 5 seeds, every plan re-checks."""
     setup = oo.GraspPlanningSetup(oo.load_scene(SCENES / scene))
     for seed in range(5):
-        _check_plan_file(setup.solve(time_limit=5.0, planner=planner, seed=seed), tmp_path)
+        assert_plan_rechecks(setup.solve(time_limit=5.0, planner=planner, seed=seed), tmp_path)
 
 
 def test_simplified_plan_rechecks(default_setup: oo.GraspPlanningSetup, tmp_path: Path) -> None:
     """OMPL's simplifier keeps the plan valid; the hand is re-derived from the law."""
     plan = default_setup.solve(time_limit=5.0, planner="ikbirrt", seed=4, simplify=True)
-    _check_plan_file(plan, tmp_path)
+    assert_plan_rechecks(plan, tmp_path)
 
 
 def test_same_seed_same_path(default_setup: oo.GraspPlanningSetup) -> None:
@@ -97,7 +85,7 @@ def test_coupling_matters(tmp_path: Path) -> None:
     """A slot fits the fingers only near c: solvable with the law, not with the hand frozen at w."""
     problem = oo.load_scene(SCENES / "panda_slot.toml")
     plan = oo.GraspPlanningSetup(problem).solve(planner="ikbirrt", seed=0)
-    _check_plan_file(plan, tmp_path)
+    assert_plan_rechecks(plan, tmp_path)
     with pytest.raises(oo.UnreachableGrasp) as error:
         oo.GraspPlanningSetup(problem, fixed_hand="w")
     assert error.value.in_collision > 0
@@ -109,7 +97,7 @@ def test_other_ompl_planners_use_ik_goal_region(
 ) -> None:
     """OMPL planners that take sampleable goals plan with the IK goal region."""
     plan = default_setup.solve(time_limit=10.0, planner=planner, seed=1)
-    _check_plan_file(plan, tmp_path)
+    assert_plan_rechecks(plan, tmp_path)
 
 
 def test_unsupported_planner_is_a_typed_error(default_setup: oo.GraspPlanningSetup) -> None:

@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import json
 import re
 from collections.abc import Callable
 from pathlib import Path
@@ -11,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
-from recheck import recheck_plan
+from recheck import assert_plan_rechecks
 
 import openup_ompl as oo
 from openup_ompl._resources import data_dir
@@ -248,9 +247,5 @@ def test_demo_scene_solved_on_19_of_20_seeds(scene: Path, planner: str, tmp_path
         except oo.PlanningFailed:
             continue
         solved += 1
-        data = json.loads(plan.save(tmp_path / f"{planner}-{seed}.json").read_text())
-        result = recheck_plan(data)
-        assert result.colliding == [], f"seed {seed}: segments {result.colliding} collide"
-        assert result.position_error <= 1e-3
-        assert result.hand_error < 1e-9
+        assert_plan_rechecks(plan, tmp_path)
     assert solved >= 19
