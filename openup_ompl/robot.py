@@ -219,21 +219,14 @@ class RobotSpec:
             arm_joints=tuple(arm),
             hand_joints=tuple(hand),
             home=_toml.vector(_toml.require(raw, "home", where), f"{where}: home", len(arm)),
-            c=_toml.vector(
-                _toml.require(table, "c", f"{where}: hand"),
-                f"{where}: hand.c (one value per hand joint)",
-                n,
-            ),
-            b=_toml.vector(
-                _toml.require(table, "b", f"{where}: hand"),
-                f"{where}: hand.b (one value per hand joint)",
-                n,
-            ),
-            w=_toml.vector(
-                _toml.require(table, "w", f"{where}: hand"),
-                f"{where}: hand.w (one value per hand joint)",
-                n,
-            ),
+            **{
+                key: _toml.vector(
+                    _toml.require(table, key, f"{where}: hand"),
+                    f"{where}: hand.{key} (one value per hand joint)",
+                    n,
+                )
+                for key in ("c", "b", "w")
+            },
             mga=_toml.number(
                 _toml.require(table, "mga", f"{where}: hand"),
                 f"{where}: hand.mga",
