@@ -113,13 +113,18 @@ def motion_weights(robot: Robot, law: HandLaw, start_distance: float) -> np.ndar
         law: The hand law (its slope bounds how fast the fingers move with ``d``).
         start_distance: Algorithm 1's denominator [m].
     """
-    model = robot.model
-    arm_ids = [model.getJointId(name) for name in robot.spec.arm_joints]
-    hand_ids = [model.getJointId(name) for name in robot.hand_joints]
-    weights = np.array([_joint_weight(robot, j) for j in arm_ids])
+    weights = arm_weights(robot)
     if law.fixed is not None:
         return weights
+    hand_ids = [robot.model.getJointId(name) for name in robot.hand_joints]
     return weights + hand_rate(robot, hand_ids, law) * distance_rates(robot, law, start_distance)
+
+
+def arm_weights(robot: Robot) -> np.ndarray:
+    """Per-arm-joint weights [m per joint unit] of the bound with the hand still: enough
+    wherever the law's hand does not move (a fixed hand, or ``d`` above ``mga``)."""
+    model = robot.model
+    return np.array([_joint_weight(robot, model.getJointId(n)) for n in robot.spec.arm_joints])
 
 
 def hand_rate(robot: Robot, hand_ids: list[int], law: HandLaw) -> float:

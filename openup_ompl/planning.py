@@ -294,7 +294,7 @@ class GraspPlanningSetup:
         from the law at every row: ``(N, nq)``."""
         arms = [waypoints[:1]]
         for a, b in zip(waypoints[:-1], waypoints[1:], strict=True):
-            arms.append(self.checker.interpolate(a, b))
+            arms.append(self.checker.interpolate(a, b, weights=self.checker.weights(a, b)))
         return self.checker.full_qs(np.concatenate(arms)).T.copy()
 
     def verify(self, path: np.ndarray) -> None:

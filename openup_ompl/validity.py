@@ -17,7 +17,7 @@ from ompl import base as ob
 from openup_ompl.collision import CollisionWorld, ThreadContext
 from openup_ompl.exceptions import ConfigError
 from openup_ompl.hand_law import GoalDistance, HandLaw
-from openup_ompl.motion_bound import distance_rates, motion_weights
+from openup_ompl.motion_bound import arm_weights, distance_rates, motion_weights
 from openup_ompl.scene import Problem
 
 #: Default motion-check resolution [m]: the largest distance any point of the robot may
@@ -63,6 +63,10 @@ class CoupledChecker:
         coarse_resolution: Spacing [m] of the coarse pass's states.
         states_checked: States checked so far (single and batched).
         motions_checked: Motions checked so far.
+        motion_weights: Weights ``W`` [m per joint unit] of the displacement bound
+            (:mod:`~openup_ompl.motion_bound`), the fingers' motion under the law included.
+        plateau_weights: The same with the hand still, for motions that stay on the law's
+            plateau (:meth:`weights`).
     """
 
     def __init__(
@@ -117,6 +121,7 @@ class CoupledChecker:
         self._inv_start = 1.0 / self.goal_distance.start_distance
         start_distance = self.goal_distance.start_distance
         self.motion_weights = motion_weights(self.robot, self.law, start_distance)
+        self.plateau_weights = arm_weights(self.robot)
         self.distance_rates = distance_rates(self.robot, self.law, start_distance)
         self.states_checked = 0
         self.motions_checked = 0
@@ -173,18 +178,46 @@ class CoupledChecker:
         return not self.finest_world.in_collision(self.robot.full_q(arm, hand))
 
     # -- motions --------------------------------------------------------------------------
-    def segment_count(self, a: np.ndarray, b: np.ndarray, resolution: float | None = None) -> int:
+    def weights(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Weights of the displacement bound for the motion ``a -> b``: without the
+        fingers' term where ``d`` provably stays above ``mga`` all along (the hand is then
+        on the law's plateau and does not move), else :attr:`motion_weights`.
+
+        Along the motion ``d >= (d(a) + d(b) - rates . |b - a|) / 2``, from the Lipschitz
+        bound of ``d`` (:attr:`distance_rates`) at both ends.
+        """
+        if self.law.fixed is not None:
+            return self.motion_weights
+        spread = float(self.distance_rates @ np.abs(b - a))
+        if 0.5 * (self.distance(a) + self.distance(b) - spread) > self.law.mga:
+            return self.plateau_weights
+        return self.motion_weights
+
+    def segment_count(
+        self,
+        a: np.ndarray,
+        b: np.ndarray,
+        resolution: float | None = None,
+        weights: np.ndarray | None = None,
+    ) -> int:
         """Number of steps the motion ``a -> b`` is cut into so that no robot point moves
-        more than ``resolution`` (default :attr:`resolution`) between checked states."""
+        more than ``resolution`` (default :attr:`resolution`) between checked states, in
+        the bound of ``weights`` (default :attr:`motion_weights`)."""
         step = self.resolution if resolution is None else resolution
-        return max(1, math.ceil(float(np.abs(b - a) @ self.motion_weights) / step))
+        w = self.motion_weights if weights is None else weights
+        return max(1, math.ceil(float(np.abs(b - a) @ w) / step))
 
     def interpolate(
-        self, a: np.ndarray, b: np.ndarray, resolution: float | None = None
+        self,
+        a: np.ndarray,
+        b: np.ndarray,
+        resolution: float | None = None,
+        weights: np.ndarray | None = None,
     ) -> np.ndarray:
         """Arm states along ``a -> b`` no robot point ``resolution`` (default
-        :attr:`resolution`) apart, excluding ``a``, including ``b``: ``(n, dof)``."""
-        n = self.segment_count(a, b, resolution)
+        :attr:`resolution`) apart in the bound of ``weights`` (default
+        :attr:`motion_weights`), excluding ``a``, including ``b``: ``(n, dof)``."""
+        n = self.segment_count(a, b, resolution, weights)
         t = np.arange(1, n + 1, dtype=float)[:, None] / n
         return a + t * (b - a)
 
@@ -261,22 +294,25 @@ class CoupledChecker:
         self.motions_checked += 1
         if not self.is_valid(b):
             return False
+        weights = self.weights(a, b)
         if self._coarse:
-            arms = np.concatenate([a[None, :], self.interpolate(a, b, self.coarse_resolution)])
+            arms = np.concatenate(
+                [a[None, :], self.interpolate(a, b, self.coarse_resolution, weights)]
+            )
             qs = self.full_qs(arms)
             self.states_checked += arms.shape[0]
             if not np.any(self._worlds[0].batch_in_collision(qs)):
                 return self._certify(
-                    arms, np.zeros(arms.shape[0], dtype=int), self.coarse_resolution
+                    arms, np.zeros(arms.shape[0], dtype=int), weights, self.coarse_resolution
                 )
             if np.any(self.finest_world.batch_in_collision(qs)):
                 return False
         base = self._coarse
-        arms = np.concatenate([a[None, :], self.interpolate(a, b)])
+        arms = np.concatenate([a[None, :], self.interpolate(a, b, weights=weights)])
         qs = self.full_qs(arms)
         self.states_checked += arms.shape[0]
         if not np.any(self._worlds[base].batch_in_collision(qs)):
-            return self._certify(arms, np.full(arms.shape[0], base), self.resolution)
+            return self._certify(arms, np.full(arms.shape[0], base), weights, self.resolution)
         if np.any(self.finest_world.batch_in_collision(qs)):
             return False
         flags = self._worlds[base].batch_in_collision(qs, stop_at_first=False)
@@ -286,7 +322,7 @@ class CoupledChecker:
             if level is None:
                 return False
             levels[i] = level
-        return self._certify(arms, levels)
+        return self._certify(arms, levels, weights)
 
     def check_motion_serial(self, a: np.ndarray, b: np.ndarray) -> bool:
         """:meth:`check_motion` one state at a time (single-core path, and the reference
@@ -294,12 +330,15 @@ class CoupledChecker:
         self.motions_checked += 1
         if not self.is_valid(b):
             return False
+        weights = self.weights(a, b)
         if self._coarse:
-            arms = np.concatenate([a[None, :], self.interpolate(a, b, self.coarse_resolution)])
-            verdict = self._coarse_serial(arms)
+            arms = np.concatenate(
+                [a[None, :], self.interpolate(a, b, self.coarse_resolution, weights)]
+            )
+            verdict = self._coarse_serial(arms, weights)
             if verdict is not None:
                 return verdict
-        arms = np.concatenate([a[None, :], self.interpolate(a, b)])
+        arms = np.concatenate([a[None, :], self.interpolate(a, b, weights=weights)])
         levels = np.zeros(arms.shape[0], dtype=int)
         for i, arm in enumerate(arms):
             self.states_checked += 1
@@ -307,15 +346,16 @@ class CoupledChecker:
             if level is None:
                 return False
             levels[i] = level
-        return self._certify(arms, levels)
+        return self._certify(arms, levels, weights)
 
-    def _coarse_serial(self, arms: np.ndarray) -> bool | None:
+    def _coarse_serial(self, arms: np.ndarray, weights: np.ndarray) -> bool | None:
         """The coarse pass one state at a time: ``True`` if every state keeps the widest
         margin, ``False`` if one collides with the finest, else ``None``."""
         qs = [self.full_q(arm) for arm in arms]
         self.states_checked += len(qs)
         if not any(self._worlds[0].in_collision(q) for q in qs):
-            return self._certify(arms, np.zeros(arms.shape[0], dtype=int), self.coarse_resolution)
+            zeros = np.zeros(arms.shape[0], dtype=int)
+            return self._certify(arms, zeros, weights, self.coarse_resolution)
         if any(self.finest_world.in_collision(q) for q in qs):
             return False
         return None
@@ -328,9 +368,15 @@ class CoupledChecker:
                 return level
         return None
 
-    def _certify(self, arms: np.ndarray, levels: np.ndarray, spacing: float | None = None) -> bool:
+    def _certify(
+        self,
+        arms: np.ndarray,
+        levels: np.ndarray,
+        weights: np.ndarray,
+        spacing: float | None = None,
+    ) -> bool:
         """Whether the polyline through ``arms`` is collision-free, given each state's
-        margin level.
+        margin level, in the displacement bound of ``weights``.
 
         An interval is covered when no robot point moves more than twice the thinner of
         its two end margins along it: every point then stays within one margin of a
@@ -345,7 +391,7 @@ class CoupledChecker:
             return True
         if spacing is not None and spacing <= 2 * pads[int(np.max(levels))]:
             return True
-        reach = np.abs(np.diff(arms, axis=0)) @ self.motion_weights
+        reach = np.abs(np.diff(arms, axis=0)) @ weights
         margin = pads[np.maximum(levels[:-1], levels[1:])]
         stack = [
             (arms[i], int(levels[i]), arms[i + 1], int(levels[i + 1]))
@@ -353,10 +399,7 @@ class CoupledChecker:
         ]
         while stack:
             start, start_level, end, end_level = stack.pop()
-            if (
-                float(np.abs(end - start) @ self.motion_weights)
-                <= 2 * pads[max(start_level, end_level)]
-            ):
+            if float(np.abs(end - start) @ weights) <= 2 * pads[max(start_level, end_level)]:
                 continue
             middle = 0.5 * (start + end)
             self.states_checked += 1

@@ -75,7 +75,7 @@ def test_motion_bound_covers_every_geometry(robot_setup: oo.GraspPlanningSetup) 
 
     rng = np.random.default_rng(1)
     grasp = robot_setup.goal.solutions[0]
-    hand_moved = 0
+    hand_moved = plateau = 0
     for k in range(300):
         centre = rng.uniform(robot.arm_lower, robot.arm_upper) if k % 2 else grasp
         a = np.clip(centre + rng.normal(0.0, 0.05, centre.size), robot.arm_lower, robot.arm_upper)
@@ -84,7 +84,12 @@ def test_motion_bound_covers_every_geometry(robot_setup: oo.GraspPlanningSetup) 
         hand_moved += not np.allclose(hand_a, hand_b)
         moved = np.max(np.linalg.norm(placements(b) - placements(a), axis=1))
         assert moved <= float(np.abs(b - a) @ checker.motion_weights) + 1e-12
-    assert hand_moved >= 50
+        # Motions given the bound without the fingers' term keep the hand still.
+        if checker.weights(a, b) is checker.plateau_weights:
+            plateau += 1
+            for t in np.linspace(0.0, 1.0, 11):
+                assert np.array_equal(checker.full_q(a + t * (b - a))[robot.hand_idx], hand_a)
+    assert hand_moved >= 50 and plateau >= 50
 
 
 def test_hand_rate_bounds_finger_motion(robot_setup: oo.GraspPlanningSetup) -> None:
