@@ -146,3 +146,21 @@ def assert_plan_rechecks(plan: Any, directory: Path) -> None:
     assert result.position_error <= 1e-3
     assert result.rotation_error <= 1e-2
     assert result.hand_error < 1e-9
+
+
+def solved_and_rechecked(
+    setup: Any, planner: str, seeds: range, time_limit: float, directory: Path
+) -> int:
+    """How many seeds ``setup.solve`` (a ``GraspPlanningSetup``) solves; every plan it
+    returns must pass :func:`assert_plan_rechecks`."""
+    from openup_ompl import PlanningFailed
+
+    solved = 0
+    for seed in seeds:
+        try:
+            plan = setup.solve(time_limit=time_limit, planner=planner, seed=seed)
+        except PlanningFailed:
+            continue
+        solved += 1
+        assert_plan_rechecks(plan, directory)
+    return solved

@@ -8,7 +8,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from ompl import util as ompl_util
-from recheck import assert_plan_rechecks
+from recheck import assert_plan_rechecks, solved_and_rechecked
 
 import openup_ompl as oo
 
@@ -33,15 +33,7 @@ def test_default_scene_solved_on_19_of_20_seeds(
     default_setup: oo.GraspPlanningSetup, planner: str, tmp_path: Path
 ) -> None:
     """Both planners solve the default scene on >= 19 of 20 seeds in 5 s; every plan re-checks."""
-    solved = 0
-    for seed in SEEDS:
-        try:
-            plan = default_setup.solve(time_limit=5.0, planner=planner, seed=seed)
-        except oo.PlanningFailed:
-            continue
-        solved += 1
-        assert_plan_rechecks(plan, tmp_path)
-    assert solved >= 19
+    assert solved_and_rechecked(default_setup, planner, SEEDS, 5.0, tmp_path) >= 19
 
 
 @pytest.mark.parametrize("scene", ["contract_example.toml", "panda_box_side.toml"])

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
-from recheck import assert_plan_rechecks
+from recheck import solved_and_rechecked
 
 import openup_ompl as oo
 from openup_ompl._resources import data_dir
@@ -240,12 +240,4 @@ def test_demo_scene_solved_on_19_of_20_seeds(scene: Path, planner: str, tmp_path
     """Both planners solve each robot's demo scene on >= 19 of 20 seeds in 10 s; every
     plan passes the independent re-check."""
     setup = oo.GraspPlanningSetup(oo.load_scene(scene))
-    solved = 0
-    for seed in SEEDS:
-        try:
-            plan = setup.solve(time_limit=10.0, planner=planner, seed=seed)
-        except oo.PlanningFailed:
-            continue
-        solved += 1
-        assert_plan_rechecks(plan, tmp_path)
-    assert solved >= 19
+    assert solved_and_rechecked(setup, planner, SEEDS, 10.0, tmp_path) >= 19
