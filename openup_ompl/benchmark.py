@@ -64,13 +64,13 @@ EXTRA_COLUMNS: dict[str, str] = {
 }
 
 
+#: The problem suites of the source tree, one directory per robot.
+PROBLEMS_ROOT = Path(__file__).resolve().parent.parent / "benchmarks" / "problems"
+
+
 def default_problems_dir(robot: str = "panda") -> Path:
     """``benchmarks/problems/<robot>`` of the source tree."""
     return PROBLEMS_ROOT / robot
-
-
-#: The problem suites of the source tree, one directory per robot.
-PROBLEMS_ROOT = Path(__file__).resolve().parent.parent / "benchmarks" / "problems"
 
 
 def default_problems() -> list[Path]:
@@ -150,15 +150,16 @@ def make_tasks(
             raise ConfigError("hand", hand, f"one of {list(HANDS)}")
     tasks = []
     for problem in problems:
+        ident, path = problem_id(Path(problem)), str(Path(problem).resolve())
         for name in names:
             for hand in hands:
                 for i in range(runs):
                     tasks.append(
                         Task(
-                            key=f"{problem_id(Path(problem))}-{name}-{hand}-{i:04d}",
+                            key=f"{ident}-{name}-{hand}-{i:04d}",
                             function="openup_ompl.benchmark:benchmark_run",
                             kwargs={
-                                "problem": str(Path(problem).resolve()),
+                                "problem": path,
                                 "planner": name,
                                 "hand": hand,
                                 "time_limit": float(time_limit),
