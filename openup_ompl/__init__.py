@@ -22,12 +22,22 @@ from openup_ompl.exceptions import (
     UnreachableGrasp,
 )
 from openup_ompl.goal import GraspGoal, IKGoalRegion
+from openup_ompl.grasp import (
+    ClosingOptions,
+    Contact,
+    GraspResult,
+    HandCloser,
+    close_hand,
+    enclosed,
+    force_closure,
+)
 from openup_ompl.hand_law import GoalDistance, HandLaw, open_hand
 from openup_ompl.ik import IKOptions, IKSolver
 from openup_ompl.plan import Plan, read_plan
 from openup_ompl.planners import IKBiRRT, IKBiRRTOptions
 from openup_ompl.planning import PLANNERS, GraspPlanningSetup
 from openup_ompl.robot import Robot, available_robots, load_robot
+from openup_ompl.robustness import RobustnessOptions, RobustnessResult, run_robustness
 from openup_ompl.scene import Problem, Shape, default_scene_path, load_scene
 from openup_ompl.validity import (
     DEFAULT_RESOLUTION,
@@ -41,7 +51,9 @@ __version__ = "0.1.0"
 __all__ = [
     "DEFAULT_RESOLUTION",
     "PLANNERS",
+    "ClosingOptions",
     "ConfigError",
+    "Contact",
     "CoupledChecker",
     "CoupledMotionValidator",
     "CoupledValidityChecker",
@@ -49,6 +61,8 @@ __all__ = [
     "GoalDistance",
     "GraspGoal",
     "GraspPlanningSetup",
+    "GraspResult",
+    "HandCloser",
     "HandLaw",
     "IKBiRRT",
     "IKBiRRTOptions",
@@ -63,13 +77,19 @@ __all__ = [
     "Problem",
     "Robot",
     "RobotNotFound",
+    "RobustnessOptions",
+    "RobustnessResult",
     "Shape",
     "UnreachableGrasp",
     "__version__",
     "available_robots",
+    "close_hand",
     "default_scene_path",
+    "enclosed",
+    "force_closure",
     "load_robot",
     "load_scene",
     "open_hand",
     "read_plan",
+    "run_robustness",
 ]

@@ -1,4 +1,4 @@
-"""Command line: ``openup-ompl plan``, ``demo``, ``show``, ``law`` (also ``python -m openup_ompl``).
+"""Command line: ``openup-ompl plan``, ``demo``, ``robustness``, ``benchmark`` and more.
 
 Bad input ends with one line on stderr and exit status 2; a planner that finds no
 solution ends with its OMPL status on stderr and exit status 1. No plan file is written
@@ -146,7 +146,84 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--seed", type=_seed, default=1, help="seed of run 0 (run i: seed + i)")
     bench.add_argument("--quiet", action="store_true", help="no progress on stderr")
     bench.set_defaults(handler=_benchmark_command)
+
+    robust = commands.add_parser(
+        "robustness",
+        help="the paper's experiment: plan at the nominal object pose, execute against"
+        " displaced ones, close the fingers, test force closure",
+    )
+    robust.add_argument(
+        "--scene", type=Path, default=None, help="scene TOML (default: scenes/lwa3_sdh_can.toml)"
+    )
+    robust.add_argument(
+        "--u",
+        type=_unit_float,
+        nargs="+",
+        default=None,
+        help="values of u (default: 0 0.1 0.3 0.5 1)",
+    )
+    robust.add_argument(
+        "--delta",
+        type=float,
+        nargs="+",
+        default=None,
+        help="object position errors [m], each along +x, -x, +y, -y"
+        " (default: 0 0.005 0.01 0.015 0.02 0.03)",
+    )
+    robust.add_argument(
+        "--yaw",
+        type=float,
+        nargs="+",
+        default=None,
+        help="object rotations about its own z axis [rad] (default: 0)",
+    )
+    robust.add_argument("--seeds", type=int, default=10, help="plans per u (trials per cell)")
+    robust.add_argument("--seed", type=_seed, default=1, help="seed of plan 0 (plan i: seed + i)")
+    robust.add_argument(
+        "--planner", default="ikbirrt", choices=PLANNERS, metavar="NAME", help="planner name"
+    )
+    robust.add_argument("--time", type=_positive_float, default=5.0, help="time limit per plan [s]")
+    robust.add_argument(
+        "--friction", type=float, default=0.5, help="Coulomb coefficient of the grasp test"
+    )
+    robust.add_argument(
+        "--out", type=Path, default=Path("openup-robustness"), help="output directory"
+    )
+    robust.add_argument("--workers", type=int, default=None, help="local task processes at a time")
+    robust.add_argument(
+        "--scheduler", default=None, help="Dask scheduler address (tcp://host:port)"
+    )
+    robust.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    robust.set_defaults(handler=_robustness_command)
     return parser
+
+
+def _robustness_command(args: argparse.Namespace) -> int:
+    from openup_ompl.robustness import RobustnessOptions, markdown_tables, run_robustness
+
+    given = {"us": args.u, "deltas": args.delta, "yaws": args.yaw}
+    options = RobustnessOptions(
+        **{key: tuple(value) for key, value in given.items() if value},
+        seeds=args.seeds,
+        first_seed=args.seed,
+        planner=args.planner,
+        time_limit=args.time,
+        friction=args.friction,
+    )
+    result = run_robustness(
+        args.scene,
+        options,
+        args.out,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        quiet=args.quiet,
+    )
+    print(markdown_tables(result.rows), end="")
+    print(f"table written to {result.csv} and {result.markdown}")
+    if result.plot is not None:
+        print(f"plot written to {result.plot}")
+    print(f"every trial in {result.trials}")
+    return 0
 
 
 def _benchmark_command(args: argparse.Namespace) -> int:

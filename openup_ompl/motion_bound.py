@@ -72,7 +72,7 @@ def joint_reach(robot: Robot, joint_id: int) -> float:
     return reach
 
 
-def _joint_weight(robot: Robot, joint_id: int) -> float:
+def joint_weight(robot: Robot, joint_id: int) -> float:
     """Displacement [m] of the farthest moved point per unit of this joint's motion."""
     return 1.0 if _is_prismatic(robot.model.joints[joint_id]) else joint_reach(robot, joint_id)
 
@@ -124,7 +124,7 @@ def arm_weights(robot: Robot) -> np.ndarray:
     """Per-arm-joint weights [m per joint unit] of the bound with the hand still: enough
     wherever the law's hand does not move (a fixed hand, or ``d`` above ``mga``)."""
     model = robot.model
-    return np.array([_joint_weight(robot, model.getJointId(n)) for n in robot.spec.arm_joints])
+    return np.array([joint_weight(robot, model.getJointId(n)) for n in robot.spec.arm_joints])
 
 
 def hand_rate(robot: Robot, hand_ids: list[int], law: HandLaw) -> float:
@@ -139,7 +139,7 @@ def hand_rate(robot: Robot, hand_ids: list[int], law: HandLaw) -> float:
     terms = dict(
         zip(
             hand_ids,
-            np.abs(law.low_slope) * [_joint_weight(robot, j) for j in hand_ids],
+            np.abs(law.low_slope) * [joint_weight(robot, j) for j in hand_ids],
             strict=True,
         )
     )

@@ -149,6 +149,9 @@ class RobotSpec:
         w: Widest opening.
         mga: Normalised distance of maximum grip aperture, in (0, 1].
         u: Default pose uncertainty in [0, 1].
+        closed: The configuration each hand joint closes towards when grasping
+            (:mod:`~openup_ompl.grasp`), or ``None``: the joint limit on ``c``'s side of
+            ``w`` (a joint with ``c == w`` stays).
         convex: Replace collision meshes by their convex hulls (faster, conservative).
         padding: Extra clearance [m] the robot keeps from obstacles and object (not
             applied to self-collision).
@@ -175,6 +178,7 @@ class RobotSpec:
     padding: float = 0.0
     mount: MountSpec | None = None
     mimic: tuple[MimicSpec, ...] = ()
+    closed: np.ndarray | None = None
 
     @classmethod
     def from_file(cls, path: Path) -> RobotSpec:
@@ -238,6 +242,11 @@ class RobotSpec:
             padding=_toml.number(raw.get("padding", 0.0), f"{where}: padding", low=0.0),
             mount=None if "mount" not in raw else _mount_spec(raw["mount"], where, path.parent),
             mimic=_mimic_specs(raw.get("mimic", {}), where, arm, hand),
+            closed=None
+            if "closed" not in table
+            else _toml.vector(
+                table["closed"], f"{where}: hand.closed (one value per hand joint)", n
+            ),
         )
 
 

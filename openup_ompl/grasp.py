@@ -1,0 +1,492 @@
+"""Closing the hand at the goal (the paper's step 3), and judging the grasp it makes.
+
+:class:`HandCloser` closes every finger from the plan's last hand configuration towards
+the robot's closed configuration (``[hand].closed``) until it touches the object; a
+finger that misses the object closes fully. Contact is located with Coal distance
+queries through Pinocchio's geometry model, by conservative advancement: each step moves
+the fingers by no more than the smallest finger-object distance allows under the
+displacement bound of :mod:`~openup_ompl.motion_bound`, so no step passes through a
+surface; a step that would still penetrate (steps have a floor, so that sliding contacts
+converge) is bisected until the finger is within ``tolerance`` of the surface.
+
+Which joints stop is GraspIt's ``autoGrasp`` rule: when a link touches, the hand joints
+that move it (its own and every hand joint above it on its finger) stop, and the joints
+below it keep closing (a proximal link's contact lets the distal joint wrap on). All
+moving joints advance at the same fraction of their joint range per step. Fingers also
+stop on obstacles (the table); those contacts are reported apart and do not enter the
+grasp test. Self-collision between fingers is not checked while closing.
+
+The grasp test is :func:`force_closure`: point contacts with Coulomb friction, each cone
+linearised by ``edges`` generators; the object is in force closure when the contact
+wrenches positively span R^6, decided exactly by a linear program (HiGHS through SciPy):
+rank 6 and a strictly positive combination summing to zero. :func:`enclosed` is the
+simpler answer: without friction, the contact normals alone hold the object in the plane
+across its axis.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import pinocchio as pin
+
+from openup_ompl.collision import _without_warm_start
+from openup_ompl.exceptions import ConfigError, InvalidProblem
+from openup_ompl.motion_bound import joint_weight
+from openup_ompl.scene import Problem, Shape
+
+__all__ = [
+    "DEFAULT_FRICTION",
+    "ClosingOptions",
+    "Contact",
+    "GraspResult",
+    "HandCloser",
+    "close_hand",
+    "closed_configuration",
+    "contact_wrenches",
+    "enclosed",
+    "force_closure",
+    "object_axis",
+    "positively_spans",
+]
+
+#: Coulomb friction coefficient of the grasp test (rubber-coated fingertips on a can).
+DEFAULT_FRICTION = 0.5
+
+
+@dataclass(frozen=True)
+class ClosingOptions:
+    """How the fingers close.
+
+    Attributes:
+        tolerance: A finger stops once it is within this distance [m] of a surface
+            (and never inside it).
+        min_step: Smallest step, as a fraction of each joint's range: sliding contacts,
+            for which conservative advancement alone would crawl, still converge.
+        max_steps: Steps at most (a step is one round of distance queries).
+    """
+
+    tolerance: float = 0.5e-3  # [m]
+    min_step: float = 2e-3  # [fraction of the joint range]
+    max_steps: int = 2000
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.tolerance) and 1e-6 <= self.tolerance <= 0.01):
+            raise ConfigError("ClosingOptions.tolerance", self.tolerance, "1e-6 to 0.01 m")
+        if not (np.isfinite(self.min_step) and 0 < self.min_step <= 0.1):
+            raise ConfigError("ClosingOptions.min_step", self.min_step, "in (0, 0.1]")
+        if self.max_steps < 1:
+            raise ConfigError("ClosingOptions.max_steps", self.max_steps, "at least 1")
+
+
+@dataclass(frozen=True)
+class Contact:
+    """A finger link touching a shape, at the end of closing.
+
+    Attributes:
+        link: The finger link (the geometry's parent frame).
+        geometry: The collision geometry that touches.
+        shape: The scene shape it touches.
+        point: The contact point on the shape's surface, world frame [m].
+        normal: Unit normal, world frame, from the finger into the shape: the direction
+            the finger pushes.
+        distance: Finger-to-surface distance [m] (0 to ``tolerance``; negative if the
+            finger already penetrated before closing).
+    """
+
+    link: str
+    geometry: str
+    shape: str
+    point: np.ndarray
+    normal: np.ndarray
+    distance: float
+
+
+@dataclass(frozen=True)
+class GraspResult:
+    """The hand after closing.
+
+    Attributes:
+        q: Full configuration after closing.
+        hand: Driven hand joint values after closing (``spec.hand_joints`` order).
+        contacts: Finger contacts on the object.
+        obstacle_contacts: Finger contacts on obstacles (they stop a finger too).
+        closed_fully: Driven hand joints that reached their closed value.
+        steps: Rounds of distance queries used.
+    """
+
+    q: np.ndarray
+    hand: np.ndarray
+    contacts: tuple[Contact, ...]
+    obstacle_contacts: tuple[Contact, ...] = ()
+    closed_fully: tuple[str, ...] = ()
+    steps: int = 0
+
+    @property
+    def points(self) -> np.ndarray:
+        """Object contact points ``(K, 3)``, world frame [m]."""
+        return np.array([c.point for c in self.contacts]).reshape(-1, 3)
+
+    @property
+    def normals(self) -> np.ndarray:
+        """Object contact normals ``(K, 3)``, into the object."""
+        return np.array([c.normal for c in self.contacts]).reshape(-1, 3)
+
+    @property
+    def fingers(self) -> set[str]:
+        """The links touching the object."""
+        return {c.link for c in self.contacts}
+
+
+def closed_configuration(problem: Problem) -> np.ndarray:
+    """The driven hand configuration the fingers close towards.
+
+    The robot file's ``[hand].closed``, or else for each joint the limit on ``c``'s side
+    of ``w`` (the Panda's fingers close to 0, the Allegro's flex to their upper limits);
+    a joint with ``c == w`` keeps its value.
+    """
+    robot = problem.robot
+    n = robot.n_driven
+    if n == 0:
+        raise InvalidProblem(f"robot {robot.name!r} has no hand joints to close")
+    limits = robot.model.lowerPositionLimit, robot.model.upperPositionLimit
+    lower, upper = (x[robot.hand_idx[:n]] for x in limits)
+    if robot.spec.closed is not None:
+        return np.clip(robot.spec.closed, lower, upper)
+    c, w = problem.hand_law.c[:n], problem.hand_law.w[:n]
+    return np.where(c < w, lower, np.where(c > w, upper, np.nan))
+
+
+@dataclass
+class _Finger:
+    """A hand geometry and the driven joints that move it."""
+
+    geometry: int
+    link: str
+    movers: np.ndarray  # driven hand joint indices
+    rates: np.ndarray  # [m per unit of closing progress], one per mover
+    pairs: list[int] = field(default_factory=list)
+
+
+class HandCloser:
+    """Closes the hand of one problem onto its object (see the module docstring).
+
+    Args:
+        problem: Robot, object and obstacles (the object where it really is).
+        options: Closing settings.
+
+    Raises:
+        InvalidProblem: The scene has no object, or the robot no hand joints.
+    """
+
+    def __init__(self, problem: Problem, options: ClosingOptions | None = None) -> None:
+        if problem.object is None:
+            raise InvalidProblem("the scene has no [object] to close the hand on")
+        self.problem = problem
+        self.options = options or ClosingOptions()
+        robot = problem.robot
+        self.closed = closed_configuration(problem)
+        n = robot.n_driven
+        model = robot.model
+        limits = model.upperPositionLimit - model.lowerPositionLimit
+        self._range = limits[robot.hand_idx[:n]]
+        driven_of = {model.getJointId(name): i for i, name in enumerate(robot.spec.hand_joints)}
+        multiplier = {model.getJointId(name): 1.0 for name in robot.spec.hand_joints}
+        for mimic in robot.mimic:
+            joint = model.getJointId(mimic.joint)
+            driven_of[joint] = robot.spec.hand_joints.index(mimic.leader)
+            multiplier[joint] = abs(mimic.multiplier)
+
+        self.geometry_model = robot.collision_model.copy()
+        n_robot = self.geometry_model.ngeoms
+        shapes = [problem.object, *problem.obstacles]
+        self._shapes: list[Shape] = shapes
+        for shape in shapes:
+            self.geometry_model.addGeometryObject(
+                pin.GeometryObject(f"env/{shape.name}", 0, 0, shape.placement, shape.geometry())
+            )
+        self._fingers: list[_Finger] = []
+        for index in range(n_robot):
+            geometry = self.geometry_model.geometryObjects[index]
+            movers, rates = [], []
+            joint = geometry.parentJoint
+            while joint != 0:
+                if joint in driven_of:
+                    movers.append(driven_of[joint])
+                    rates.append(multiplier[joint] * joint_weight(robot, joint))
+                joint = model.parents[joint]
+            if not movers:
+                continue
+            finger = _Finger(
+                index, model.frames[geometry.parentFrame].name, np.array(movers), np.array(rates)
+            )
+            for s in range(len(shapes)):
+                finger.pairs.append(len(self.geometry_model.collisionPairs))
+                self.geometry_model.addCollisionPair(pin.CollisionPair(index, n_robot + s))
+            self._fingers.append(finger)
+        self._data = model.createData()
+        self._geometry_data = _without_warm_start(self.geometry_model.createData())
+
+    def _distances(self, q: np.ndarray, fingers: list[_Finger]) -> np.ndarray:
+        """Signed distance [m] of each finger to each shape, ``(len(fingers), shapes)``."""
+        robot = self.problem.robot
+        pin.updateGeometryPlacements(
+            robot.model, self._data, self.geometry_model, self._geometry_data, q
+        )
+        out = np.empty((len(fingers), len(self._shapes)))
+        for i, finger in enumerate(fingers):
+            for s, pair in enumerate(finger.pairs):
+                result = pin.computeDistance(self.geometry_model, self._geometry_data, pair)
+                out[i, s] = result.min_distance
+        return out
+
+    def _contact(self, finger: _Finger, shape: int) -> Contact:
+        result = self._geometry_data.distanceResults[finger.pairs[shape]]
+        normal = np.array(result.normal, dtype=float)
+        normal /= max(float(np.linalg.norm(normal)), 1e-12)
+        return Contact(
+            link=finger.link,
+            geometry=self.geometry_model.geometryObjects[finger.geometry].name,
+            shape=self._shapes[shape].name,
+            point=np.array(result.getNearestPoint2(), dtype=float),
+            normal=normal,
+            distance=float(result.min_distance),
+        )
+
+    def close(self, q: np.ndarray) -> GraspResult:
+        """Close the fingers from the full configuration ``q`` (arm and hand fixed there).
+
+        Returns:
+            The hand after closing: configuration, contacts on the object and on
+            obstacles, and the joints that closed fully.
+        """
+        robot = self.problem.robot
+        n = robot.n_driven
+        tolerance = self.options.tolerance
+        q = np.array(q, dtype=float)
+        if q.shape != (robot.model.nq,):
+            raise ConfigError("close: q", q.shape, f"a full configuration of {robot.model.nq}")
+        hand = q[robot.hand_idx[:n]].copy()
+        target = np.where(np.isnan(self.closed), hand, self.closed)
+        direction = np.sign(target - hand) * self._range  # per unit of progress
+        active = direction != 0
+        touching: dict[tuple[int, int], Contact] = {}
+        moving = list(self._fingers)
+
+        def at(values: np.ndarray) -> np.ndarray:
+            q[robot.hand_idx] = robot.expand_hand(values)
+            return q
+
+        steps = 0
+        while steps < self.options.max_steps:
+            moving = [f for f in moving if active[f.movers].any()]
+            if not moving:
+                break
+            distances = self._distances(at(hand), moving)
+            steps += 1
+            hit = distances <= tolerance
+            for i, s in zip(*np.nonzero(hit), strict=True):
+                touching[(moving[i].geometry, int(s))] = self._contact(moving[i], int(s))
+                active[moving[i].movers] = False
+            if hit.any():
+                continue
+            remaining = np.abs(target - hand) / self._range
+            room = float(remaining[active].min())
+            rates = np.array(
+                [np.sum(f.rates * active[f.movers] * self._range[f.movers]) for f in moving]
+            )
+            clearance = distances.min(axis=1)
+            step = max(float(np.min(clearance / np.maximum(rates, 1e-12))), self.options.min_step)
+            step = min(step, room)
+            proposal = self._advance(hand, target, direction, active, step)
+            new_distances = self._distances(at(proposal), moving)
+            steps += 1
+            if (new_distances <= 0).any():
+                proposal = self._bisect(hand, target, direction, active, step, moving, at)
+                steps += 1
+            hand = proposal
+            done = active & np.isclose(hand, target, rtol=0, atol=1e-12)
+            active &= ~done
+        at(hand)
+        return GraspResult(
+            q=q.copy(),
+            hand=hand.copy(),
+            contacts=tuple(c for (_, s), c in touching.items() if s == 0),
+            obstacle_contacts=tuple(c for (_, s), c in touching.items() if s > 0),
+            closed_fully=tuple(
+                name
+                for name, value, goal, moves in zip(
+                    robot.spec.hand_joints, hand, target, direction != 0, strict=True
+                )
+                if moves and abs(value - goal) <= 1e-9
+            ),
+            steps=steps,
+        )
+
+    @staticmethod
+    def _advance(
+        hand: np.ndarray, target: np.ndarray, direction: np.ndarray, active: np.ndarray, step: float
+    ) -> np.ndarray:
+        moved = hand + direction * active * step
+        return np.where(direction > 0, np.minimum(moved, target), np.maximum(moved, target))
+
+    def _bisect(self, hand, target, direction, active, step, moving, at):  # type: ignore[no-untyped-def]
+        """The step in ``(0, step)`` after which the nearest finger is within
+        ``tolerance`` of a surface and none is inside one."""
+        low, high = 0.0, step
+        best = hand
+        for _ in range(60):
+            middle = 0.5 * (low + high)
+            proposal = self._advance(hand, target, direction, active, middle)
+            distances = self._distances(at(proposal), moving)
+            if (distances <= 0).any():
+                high = middle
+            else:
+                low, best = middle, proposal
+                if (distances <= self.options.tolerance).any():
+                    break
+        return best
+
+
+def close_hand(
+    problem: Problem, q: np.ndarray, options: ClosingOptions | None = None
+) -> GraspResult:
+    """Close the hand of ``problem``'s robot at the full configuration ``q`` onto its
+    object (see :class:`HandCloser`)."""
+    return HandCloser(problem, options).close(q)
+
+
+def _as_contacts(points: object, normals: object, where: str) -> tuple[np.ndarray, np.ndarray]:
+    p = np.asarray(points, dtype=float).reshape(-1, 3)
+    n = np.asarray(normals, dtype=float).reshape(-1, 3)
+    if p.shape != n.shape:
+        raise ConfigError(f"{where}: normals", n.shape, f"one normal per point {p.shape}")
+    if not (np.isfinite(p).all() and np.isfinite(n).all()):
+        raise ConfigError(f"{where}: contacts", "non-finite values", "finite points and normals")
+    length = np.linalg.norm(n, axis=1)
+    if np.any(length < 1e-9):
+        raise ConfigError(f"{where}: normals", n[length < 1e-9][0].tolist(), "non-zero normals")
+    return p, n / length[:, None]
+
+
+def positively_spans(vectors: np.ndarray) -> bool:
+    """Whether the columns of ``vectors`` ``(m, K)`` positively span R^m.
+
+    Exactly when they have rank ``m`` and some combination with every coefficient at
+    least 1 sums to zero (then any vector is a positive combination, and conversely);
+    the second part is a linear-programming feasibility problem.
+    """
+    from scipy.optimize import linprog
+
+    vectors = np.asarray(vectors, dtype=float)
+    m, k = vectors.shape
+    if k <= m:
+        return False
+    singular = np.linalg.svd(vectors, compute_uv=False)
+    if singular[-1] <= 1e-9 * singular[0]:
+        return False
+    result = linprog(
+        np.zeros(k), A_eq=vectors, b_eq=np.zeros(m), bounds=[(1.0, None)] * k, method="highs"
+    )
+    return bool(result.status == 0)
+
+
+def contact_wrenches(
+    points: object,
+    normals: object,
+    *,
+    friction: float = DEFAULT_FRICTION,
+    edges: int = 8,
+    center: Sequence[float] | None = None,
+) -> np.ndarray:
+    """The primitive wrenches ``(6, K * edges)`` of point contacts with friction.
+
+    Each contact's friction cone (half-angle ``atan(friction)`` about the inward
+    ``normal``) is linearised by ``edges`` unit-normal-force generators; a generator
+    ``f`` at ``p`` has wrench ``[f, (p - center) x f / scale]``, with torques divided by
+    the contacts' mean distance to ``center`` [m] (default: their centroid) so that both
+    halves have comparable size. The scale changes no decision.
+    """
+    p, n = _as_contacts(points, normals, "contact_wrenches")
+    if not (np.isfinite(friction) and friction >= 0):
+        raise ConfigError("friction", friction, "a coefficient >= 0")
+    if edges < 3:
+        raise ConfigError("edges", edges, "at least 3 generators per friction cone")
+    origin = p.mean(axis=0) if center is None else np.asarray(center, dtype=float)
+    arms = p - origin
+    scale = max(float(np.linalg.norm(arms, axis=1).mean()), 1e-9)
+    helper = np.where(np.abs(n[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    t1 = np.cross(n, helper)
+    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+    t2 = np.cross(n, t1)
+    angles = 2 * np.pi * np.arange(edges) / edges
+    forces = (
+        n[:, None, :]
+        + friction * np.cos(angles)[None, :, None] * t1[:, None, :]
+        + friction * np.sin(angles)[None, :, None] * t2[:, None, :]
+    ).reshape(-1, 3)
+    torques = np.cross(np.repeat(arms, edges, axis=0), forces) / scale
+    return np.concatenate([forces, torques], axis=1).T
+
+
+def force_closure(
+    points: object,
+    normals: object,
+    *,
+    friction: float = DEFAULT_FRICTION,
+    edges: int = 8,
+    center: Sequence[float] | None = None,
+) -> bool:
+    """Whether point contacts with friction hold the object in force closure: their
+    wrenches (:func:`contact_wrenches`) positively span R^6, so the fingers can resist
+    any external force and torque on the object.
+
+    Args:
+        points: Contact points ``(K, 3)`` [m], world frame.
+        normals: Inward contact normals ``(K, 3)`` (the direction each finger pushes).
+        friction: Coulomb coefficient (default :data:`DEFAULT_FRICTION`).
+        edges: Generators of each linearised cone (8: an inscribed octagon).
+        center: Torque reference [m] (the decision does not depend on it).
+    """
+    wrenches = contact_wrenches(points, normals, friction=friction, edges=edges, center=center)
+    return positively_spans(wrenches)
+
+
+def object_axis(shape: Shape) -> np.ndarray | None:
+    """The object's long axis in the world frame: a cylinder's z, a box's longest side;
+    ``None`` for a sphere."""
+    rotation = shape.placement.rotation
+    if shape.shape == "cylinder":
+        return np.array(rotation[:, 2])
+    if shape.shape == "box":
+        assert shape.size is not None
+        return np.array(rotation[:, int(np.argmax(shape.size))])
+    return None
+
+
+def enclosed(normals: object, axis: Sequence[float] | np.ndarray | None = None) -> bool:
+    """Whether the fingers enclose the object: the inward contact normals, projected
+    on the plane across ``axis``, positively span that plane, so that the object cannot
+    slide out sideways even without friction.
+
+    Args:
+        normals: Inward contact normals ``(K, 3)``.
+        axis: The object's long axis (:func:`object_axis`); ``None`` (a sphere) uses the
+            normal of the plane the contact normals lie closest to.
+    """
+    n = np.asarray(normals, dtype=float).reshape(-1, 3)
+    if n.shape[0] < 3:
+        return False
+    if axis is None:
+        axis = np.linalg.svd(n)[2][-1]
+    a = np.asarray(axis, dtype=float)
+    a = a / np.linalg.norm(a)
+    helper = np.array([1.0, 0.0, 0.0]) if abs(a[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = np.cross(a, helper)
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(a, e1)
+    planar = np.stack([n @ e1, n @ e2])
+    keep = np.linalg.norm(planar, axis=0) > 1e-6
+    return positively_spans(planar[:, keep])

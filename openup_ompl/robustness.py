@@ -1,0 +1,506 @@
+"""The paper's experiment: plan with the perceived object pose, execute against the true one.
+
+For each uncertainty ``u`` and planning seed, one plan is made with the nominal object
+pose (what perception reported). That plan is then executed against the true object,
+displaced by an error ``delta`` along the world x and y axes (both signs) and optionally
+turned by ``yaw`` about its own z axis. In the shipped ``lwa3_sdh`` scene the world x
+axis is the approach direction and y the lateral one, the axes of the paper's Fig. 1.
+
+A trial succeeds when
+
+1. the arm and hand touch neither the true object nor any obstacle at any row of the
+   plan (the plan's rows are at the checker's resolution, the hand set by the law), and
+2. closing the fingers at the end of the plan (:mod:`~openup_ompl.grasp`) holds the true
+   object in force closure.
+
+Runs go through the :mod:`~openup_ompl.executor`: one task per ``(u, seed)`` plans once
+and executes every perturbation; each task process rebuilds its problem from the scene
+file. A planning failure makes every trial of its task a failure (not a collision).
+
+Outputs (:func:`run_robustness`): ``robustness.csv`` (one row per ``(u, dx, dy, yaw)``
+cell), ``robustness.md`` (tables), ``robustness.png`` (success rate against error, one
+line per ``u``) and ``trials.json`` (every trial).
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import hashlib
+import json
+import math
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from openup_ompl._resources import data_dir
+from openup_ompl.exceptions import ConfigError, InvalidProblem
+from openup_ompl.executor import Task, load_records, run_tasks
+from openup_ompl.scene import Problem, Shape
+
+__all__ = [
+    "CSV_COLUMNS",
+    "MAX_DELTA",
+    "RobustnessOptions",
+    "RobustnessResult",
+    "default_robustness_scene",
+    "displaced",
+    "make_tasks",
+    "markdown_tables",
+    "perturbations",
+    "plot_robustness",
+    "robustness_run",
+    "run_robustness",
+    "summarize",
+]
+
+#: The columns of ``robustness.csv``, in order.
+CSV_COLUMNS = (
+    "u",
+    "dx",
+    "dy",
+    "yaw",
+    "trials",
+    "successes",
+    "success_rate",
+    "collisions",
+    "force_closure",
+)
+#: Largest pose error [m] accepted: beyond it the "error" is a different scene.
+MAX_DELTA = 0.25
+
+
+def default_robustness_scene() -> Path:
+    """The paper's robot taking a can from the side: ``scenes/lwa3_sdh_can.toml``."""
+    return data_dir("scenes") / "lwa3_sdh_can.toml"
+
+
+@dataclass(frozen=True)
+class RobustnessOptions:
+    """The sweep's settings.
+
+    Attributes:
+        us: Uncertainties ``u`` in [0, 1] to plan with.
+        deltas: Position errors [m], each applied along +x, -x, +y and -y (0: once).
+        yaws: Rotations [rad] of the object about its own z axis, combined with every
+            position error.
+        seeds: Planning seeds per ``u`` (trials per cell).
+        first_seed: Seed of the first plan (plan ``i`` uses ``first_seed + i``).
+        planner: Planner name (:data:`~openup_ompl.planning.PLANNERS`).
+        time_limit: Planning time limit [s].
+        friction: Coulomb coefficient of the force-closure test.
+    """
+
+    us: tuple[float, ...] = (0.0, 0.1, 0.3, 0.5, 1.0)
+    deltas: tuple[float, ...] = (0.0, 0.005, 0.01, 0.015, 0.02, 0.03)  # [m]
+    yaws: tuple[float, ...] = (0.0,)  # [rad]
+    seeds: int = 10
+    first_seed: int = 1
+    planner: str = "ikbirrt"
+    time_limit: float = 5.0  # [s]
+    friction: float = 0.5
+
+    def __post_init__(self) -> None:
+        from openup_ompl.planning import PLANNERS
+
+        def values(name: str, raw: Sequence[float], ok: Any, expected: str) -> tuple[float, ...]:
+            items = tuple(float(x) for x in raw)
+            if not items:
+                raise ConfigError(name, list(raw), f"at least one value: {expected}")
+            for x in items:
+                if not (math.isfinite(x) and ok(x)):
+                    raise ConfigError(name, x, expected)
+            if len(set(items)) != len(items):
+                raise ConfigError(name, list(items), "distinct values")
+            return items
+
+        object.__setattr__(
+            self, "us", values("u", self.us, lambda x: 0 <= x <= 1, "values in [0, 1]")
+        )
+        object.__setattr__(
+            self,
+            "deltas",
+            values(
+                "delta",
+                self.deltas,
+                lambda x: 0 <= x <= MAX_DELTA,
+                f"errors in [0, {MAX_DELTA}] m (each is applied with both signs)",
+            ),
+        )
+        object.__setattr__(
+            self,
+            "yaws",
+            values("yaw", self.yaws, lambda x: abs(x) <= math.pi, "angles in [-pi, pi] rad"),
+        )
+        if not (isinstance(self.seeds, int) and self.seeds >= 1):
+            raise ConfigError("seeds", self.seeds, "an integer >= 1")
+        if not (isinstance(self.first_seed, int) and 0 <= self.first_seed < 2**31 - self.seeds):
+            raise ConfigError("seed", self.first_seed, "an integer seed in [0, 2^31)")
+        if self.planner.lower() not in PLANNERS:
+            raise ConfigError("planner", self.planner, f"one of {list(PLANNERS)}")
+        if not (math.isfinite(self.time_limit) and self.time_limit > 0):
+            raise ConfigError("time", self.time_limit, "a positive number of seconds")
+        if not (math.isfinite(self.friction) and self.friction >= 0):
+            raise ConfigError("friction", self.friction, "a coefficient >= 0")
+
+
+def perturbations(
+    deltas: Sequence[float], yaws: Sequence[float] = (0.0,)
+) -> list[tuple[float, float, float]]:
+    """The ``(dx, dy, yaw)`` cells: each ``delta`` along +x, -x, +y, -y (0 once), times
+    every ``yaw``."""
+    cells: list[tuple[float, float, float]] = []
+    for yaw in yaws:
+        for delta in deltas:
+            if delta == 0:
+                cells.append((0.0, 0.0, float(yaw)))
+            else:
+                d = float(delta)
+                cells += [(d, 0.0, yaw), (-d, 0.0, yaw), (0.0, d, yaw), (0.0, -d, yaw)]
+    return cells
+
+
+def displaced(problem: Problem, dx: float, dy: float, yaw: float = 0.0) -> Problem:
+    """The problem with its object moved by ``(dx, dy)`` [m] in the world frame and turned
+    by ``yaw`` [rad] about its own z axis: where the object really is."""
+    shape = problem.object
+    if shape is None:
+        raise InvalidProblem("the scene has no [object] to displace")
+    placement = shape.placement
+    turned = placement.rotation @ pin.utils.rotate("z", float(yaw))
+    pose = pin.SE3ToXYZQUAT(
+        pin.SE3(turned, placement.translation + np.array([float(dx), float(dy), 0.0]))
+    )
+    raw = {**shape.raw, "pose": [float(x) for x in pose]}
+    moved: Shape = dataclasses.replace(shape, pose=np.asarray(pose, dtype=float), raw=raw)
+    return dataclasses.replace(problem, object=moved)
+
+
+def check_scene(scene: str | Path) -> Problem:
+    """Load a scene and refuse what the experiment cannot run on.
+
+    Raises:
+        InvalidProblem: No ``[object]``, a robot without hand joints, or a hand that has
+            no joint to close.
+    """
+    from openup_ompl.grasp import closed_configuration
+    from openup_ompl.scene import load_scene
+
+    problem = load_scene(scene)
+    if problem.object is None:
+        raise InvalidProblem(f"{Path(scene).name}: the scene has no [object] to grasp")
+    closed = closed_configuration(problem)
+    if np.all(np.isnan(closed)):
+        raise InvalidProblem(
+            f"robot {problem.robot.name!r}: no hand joint closes (c == w everywhere and no"
+            " [hand].closed)"
+        )
+    return problem
+
+
+def make_tasks(scene: str | Path, options: RobustnessOptions) -> list[Task]:
+    """One task per ``(u, seed)``; the key carries a digest of every setting, so that a
+    rerun with other settings never reuses a shard."""
+    path = str(Path(scene).resolve())
+    cells = perturbations(options.deltas, options.yaws)
+    shared = {
+        "scene": path,
+        "planner": options.planner.lower(),
+        "time_limit": float(options.time_limit),
+        "perturbations": [list(cell) for cell in cells],
+        "friction": float(options.friction),
+    }
+    digest = hashlib.sha1(json.dumps(shared, sort_keys=True).encode()).hexdigest()[:10]
+    tasks = []
+    for u in options.us:
+        for i in range(options.seeds):
+            seed = options.first_seed + i
+            tasks.append(
+                Task(
+                    key=f"u{u:g}-seed{seed}-{digest}",
+                    function="openup_ompl.robustness:robustness_run",
+                    kwargs={**shared, "u": float(u)},
+                    seed=seed,
+                )
+            )
+    return tasks
+
+
+def robustness_run(
+    seed: int,
+    scene: str,
+    u: float,
+    planner: str,
+    time_limit: float,
+    perturbations: Sequence[Sequence[float]],
+    friction: float,
+) -> dict[str, Any]:
+    """Plan once at the nominal pose, then execute against every perturbation (inside a
+    task process).
+
+    Returns:
+        ``{"u", "seed", "planned", "error", "solve_time", "trials": [...]}``; each trial
+        has ``dx, dy, yaw, collision, collision_row, pairs, force_closure, enclosed,
+        contacts, fingers, success``.
+    """
+    from openup_ompl.collision import CollisionWorld
+    from openup_ompl.exceptions import PlanningFailed
+    from openup_ompl.grasp import HandCloser, enclosed, force_closure, object_axis
+    from openup_ompl.planning import GraspPlanningSetup
+
+    problem = check_scene(scene)
+    record: dict[str, Any] = {"u": u, "seed": seed, "planned": False, "error": None}
+    try:
+        setup = GraspPlanningSetup(problem, u=u)
+        plan = setup.solve(time_limit=time_limit, planner=planner, seed=seed, simplify=True)
+    except (PlanningFailed, InvalidProblem) as error:
+        record["error"] = str(error)
+        record["trials"] = [
+            {
+                "dx": c[0],
+                "dy": c[1],
+                "yaw": c[2],
+                "success": False,
+                "collision": False,
+                "force_closure": False,
+                "enclosed": False,
+            }  # fmt: skip
+            for c in perturbations
+        ]
+        return record
+    record.update(planned=True, solve_time=plan.solve_time_s, rows=int(plan.path.shape[0]))
+    path = np.asfortranarray(plan.path.T)
+    trials = []
+    for dx, dy, yaw in perturbations:
+        true = displaced(problem, dx, dy, yaw)
+        world = CollisionWorld(true, num_threads=1)
+        flags = world.batch_in_collision(path, stop_at_first=False)
+        hit = int(np.argmax(flags)) if flags.any() else None
+        grasp = HandCloser(true).close(plan.path[-1])
+        assert true.object is not None
+        closure = len(grasp.contacts) > 0 and force_closure(
+            grasp.points, grasp.normals, friction=friction
+        )
+        trials.append(
+            {
+                "dx": dx,
+                "dy": dy,
+                "yaw": yaw,
+                "collision": hit is not None,
+                "collision_row": hit,
+                "pairs": world.colliding_pairs(plan.path[hit]) if hit is not None else [],
+                "force_closure": bool(closure),
+                "enclosed": enclosed(grasp.normals, object_axis(true.object)),
+                "contacts": len(grasp.contacts),
+                "fingers": sorted(grasp.fingers),
+                "success": hit is None and bool(closure),
+            }
+        )
+    record["trials"] = trials
+    return record
+
+
+def summarize(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """One row per ``(u, dx, dy, yaw)`` cell with the :data:`CSV_COLUMNS`, in sweep order."""
+    cells: dict[tuple[float, float, float, float], dict[str, Any]] = {}
+    for record in records:
+        for trial in record["trials"]:
+            key = (record["u"], trial["dx"], trial["dy"], trial["yaw"])
+            row = cells.setdefault(
+                key,
+                dict(zip(CSV_COLUMNS[:4], key, strict=True))
+                | {"trials": 0, "successes": 0, "collisions": 0, "force_closure": 0},
+            )
+            row["trials"] += 1
+            row["successes"] += int(trial["success"])
+            row["collisions"] += int(trial["collision"])
+            row["force_closure"] += int(trial["force_closure"])
+    rows = []
+    for row in cells.values():
+        row["success_rate"] = row["successes"] / row["trials"]
+        rows.append({column: row[column] for column in CSV_COLUMNS})
+    return rows
+
+
+def _direction(row: dict[str, Any]) -> str:
+    if row["dx"] == 0 and row["dy"] == 0:
+        return "none"
+    axis = "x" if row["dx"] != 0 else "y"
+    return ("+" if row["dx"] + row["dy"] > 0 else "-") + axis
+
+
+def _magnitude(row: dict[str, Any]) -> float:
+    return float(abs(row["dx"]) + abs(row["dy"]))
+
+
+def _grouped(rows: Sequence[dict[str, Any]], by_direction: bool) -> dict[Any, list[int]]:
+    """``(u, direction or "all", |delta|) -> [successes, trials]`` (yaws pooled)."""
+    table: dict[Any, list[int]] = {}
+    for row in rows:
+        direction = _direction(row) if by_direction else "all"
+        for name in {direction, "all"} if by_direction and direction == "none" else {direction}:
+            cell = table.setdefault((row["u"], name, _magnitude(row)), [0, 0])
+            cell[0] += row["successes"]
+            cell[1] += row["trials"]
+    return table
+
+
+def markdown_tables(rows: Sequence[dict[str, Any]]) -> str:
+    """Success per ``u`` and error magnitude (directions and yaws pooled), then per
+    direction; cells are ``successes/trials``."""
+    us = sorted({row["u"] for row in rows})
+    magnitudes = sorted({_magnitude(row) for row in rows})
+    head = "| u | " + " | ".join(f"{m * 100:g} cm" for m in magnitudes) + " |"
+    rule = "|---:|" + "---:|" * len(magnitudes)
+    pooled = _grouped(rows, by_direction=False)
+    lines = ["Success (directions pooled): successes / trials", "", head, rule]
+    for u in us:
+        cells = [pooled.get((u, "all", m)) for m in magnitudes]
+        lines.append(
+            f"| {u:g} | " + " | ".join(f"{c[0]}/{c[1]}" if c else "" for c in cells) + " |"
+        )
+    by_direction = _grouped(rows, by_direction=True)
+    directions = [d for d in ("+x", "-x", "+y", "-y") if any(k[1] == d for k in by_direction)]
+    if directions:
+        moved = [m for m in magnitudes if m > 0]
+        lines += ["", "Success per direction of the error: successes / trials", ""]
+        lines.append("| u | error | " + " | ".join(f"{m * 100:g} cm" for m in moved) + " |")
+        lines.append("|---:|:---|" + "---:|" * len(moved))
+        for u in us:
+            for d in directions:
+                cells = [by_direction.get((u, d, m)) for m in moved]
+                lines.append(
+                    f"| {u:g} | {d} | "
+                    + " | ".join(f"{c[0]}/{c[1]}" if c else "" for c in cells)
+                    + " |"
+                )
+    return "\n".join(lines) + "\n"
+
+
+def write_csv(rows: Sequence[dict[str, Any]], path: Path) -> Path:
+    """``robustness.csv``: the :data:`CSV_COLUMNS`, one row per cell."""
+    with path.open("w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(CSV_COLUMNS))
+        writer.writeheader()
+        for row in rows:
+            writer.writerow({**row, "success_rate": f"{row['success_rate']:.4f}"})
+    return path
+
+
+def plot_robustness(rows: Sequence[dict[str, Any]], path: Path, title: str = "") -> Path:
+    """Success rate against the error magnitude, one line per ``u``: all directions
+    pooled, then one panel per direction."""
+    from openup_ompl.figures import _pyplot
+
+    plt = _pyplot()
+    us = sorted({row["u"] for row in rows})
+    grouped = _grouped(rows, by_direction=True)
+    pooled = _grouped(rows, by_direction=False)
+    panels = ["all", *[d for d in ("+x", "-x", "+y", "-y") if any(k[1] == d for k in grouped)]]
+    figure, axes = plt.subplots(
+        1, len(panels), figsize=(3.2 * len(panels), 3.4), sharey=True, squeeze=False
+    )
+    colours = plt.get_cmap("viridis")(np.linspace(0.0, 0.9, len(us)))
+    for ax, panel in zip(axes[0], panels, strict=True):
+        table = pooled if panel == "all" else grouped
+        for u, colour in zip(us, colours, strict=True):
+            points = sorted(
+                (m * 100, s / t)
+                for (uu, name, m), (s, t) in table.items()
+                if uu == u and (name == panel or (name == "none" and panel != "all"))
+            )
+            if points:
+                xs, ys = zip(*points, strict=True)
+                ax.plot(xs, ys, "o-", color=colour, label=f"u = {u:g}")
+        ax.set_title("all directions" if panel == "all" else f"error along {panel}")
+        ax.set_xlabel("object pose error [cm]")
+        ax.set_ylim(-0.05, 1.05)
+        ax.grid(alpha=0.3)
+    axes[0][0].set_ylabel("success rate")
+    axes[0][0].legend(loc="lower left", fontsize=8)
+    if title:
+        figure.suptitle(title)
+    figure.tight_layout()
+    figure.savefig(path, dpi=120)
+    plt.close(figure)
+    return path
+
+
+@dataclass(frozen=True)
+class RobustnessResult:
+    """What :func:`run_robustness` wrote and found.
+
+    Attributes:
+        csv: ``robustness.csv``.
+        markdown: ``robustness.md``.
+        plot: ``robustness.png``, or ``None`` without matplotlib.
+        trials: ``trials.json`` (every record).
+        rows: The CSV rows.
+        records: One record per ``(u, seed)``.
+    """
+
+    csv: Path
+    markdown: Path
+    plot: Path | None
+    trials: Path
+    rows: list[dict[str, Any]]
+    records: list[dict[str, Any]]
+
+
+def run_robustness(
+    scene: str | Path | None = None,
+    options: RobustnessOptions | None = None,
+    out: str | Path = "openup-robustness",
+    *,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    quiet: bool = False,
+) -> RobustnessResult:
+    """Run the experiment (skipping finished tasks) and write its outputs to ``out``.
+
+    Args:
+        scene: Scene file (default :func:`default_robustness_scene`).
+        options: The sweep (default :class:`RobustnessOptions`).
+        out: Output directory.
+        workers: Local task processes at a time (default: the usable cores).
+        scheduler: Dask scheduler address; ``None`` runs locally.
+        quiet: No progress on stderr.
+
+    Raises:
+        InvalidProblem: The scene has no object, or its robot no hand to close.
+        ConfigError: Bad options.
+        SweepFailed: Some task failed on every attempt.
+    """
+    scene = Path(scene) if scene is not None else default_robustness_scene()
+    options = options or RobustnessOptions()
+    problem = check_scene(scene)
+    out = Path(out)
+    tasks = make_tasks(scene, options)
+    run_tasks(tasks, out / "shards", workers=workers, scheduler=scheduler, quiet=quiet)
+    records = load_records(tasks, out / "shards")
+    rows = summarize(records)
+    trials = out / "trials.json"
+    trials.write_text(json.dumps(records, indent=1) + "\n")
+    csv_path = write_csv(rows, out / "robustness.csv")
+    markdown = out / "robustness.md"
+    title = (
+        f"{problem.robot.name}, {scene.name}: {options.seeds} plans per u "
+        f"({options.planner}, {options.time_limit:g} s), friction {options.friction:g}"
+    )
+    markdown.write_text(
+        f"# Robustness to object pose errors\n\n{title}\n\n" + markdown_tables(rows)
+    )
+    from openup_ompl.figures import MissingExtra
+
+    plot: Path | None
+    try:
+        plot = plot_robustness(rows, out / "robustness.png", title=title)
+    except MissingExtra as error:
+        print(f"no plot: {error}", file=sys.stderr)
+        plot = None
+    return RobustnessResult(csv_path, markdown, plot, trials, rows, records)
