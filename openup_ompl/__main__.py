@@ -80,6 +80,11 @@ def build_parser() -> argparse.ArgumentParser:
         sub.add_argument(
             "--continuous", action="store_true", help="use the hand law without the jump at mga"
         )
+        sub.add_argument(
+            "--open-arrival",
+            action="store_true",
+            help="extension: the hand reaches the grasp opened by u, at c + (w - c) u",
+        )
 
     plan = commands.add_parser("plan", help="plan a scene file and write the plan file")
     plan.add_argument("scene", type=Path, help="scene TOML (CONTRACT section 3)")
@@ -111,6 +116,9 @@ def build_parser() -> argparse.ArgumentParser:
         "--u", type=_unit_float, nargs="+", default=[0.0, 0.3, 1.0], help="values of u in [0, 1]"
     )
     law.add_argument("--continuous", action="store_true", help="the law without the jump at mga")
+    law.add_argument(
+        "--open-arrival", action="store_true", help="the law that reaches the grasp opened by u"
+    )
     law.add_argument("--out", type=Path, default=None, help="PNG (default: <robot>_hand_law.png)")
     law.set_defaults(handler=_law_command)
 
@@ -187,6 +195,11 @@ def build_parser() -> argparse.ArgumentParser:
         "--friction", type=float, default=0.5, help="Coulomb coefficient of the grasp test"
     )
     robust.add_argument(
+        "--open-arrival",
+        action="store_true",
+        help="plan with the extension that reaches the grasp opened by u",
+    )
+    robust.add_argument(
         "--out", type=Path, default=Path("openup-robustness"), help="output directory"
     )
     robust.add_argument("--workers", type=int, default=None, help="local task processes at a time")
@@ -209,6 +222,7 @@ def _robustness_command(args: argparse.Namespace) -> int:
         planner=args.planner,
         time_limit=args.time,
         friction=args.friction,
+        open_arrival=args.open_arrival,
     )
     result = run_robustness(
         args.scene,
@@ -237,7 +251,12 @@ def _plan(args: argparse.Namespace, scene: Path):  # type: ignore[no-untyped-def
     from openup_ompl.scene import load_scene
 
     problem = load_scene(scene)
-    setup = GraspPlanningSetup(problem, u=args.u, continuous=True if args.continuous else None)
+    setup = GraspPlanningSetup(
+        problem,
+        u=args.u,
+        continuous=True if args.continuous else None,
+        open_arrival=True if args.open_arrival else None,
+    )
     plan = setup.solve(
         time_limit=args.time, planner=args.planner, seed=args.seed, simplify=not args.no_simplify
     )
@@ -304,6 +323,7 @@ def _law_command(args: argparse.Namespace) -> int:
         robot = load_robot(args.robot or "panda")
         law, what = robot.hand_law(), robot.name
     law = law.with_options(continuous=True) if args.continuous else law
+    law = law.with_options(open_arrival=True) if args.open_arrival else law
     joints = list(robot.hand_joints)
     figure = plot_law(
         law,
@@ -312,7 +332,8 @@ def _law_command(args: argparse.Namespace) -> int:
         joint_names=joints,
         prismatic=prismatic_joints(robot.model, joints).tolist(),
         title=f"hand law of {what} (Algorithm 3), mga = {law.mga:g}"
-        + (", continuous" if law.continuous else ""),
+        + (", continuous" if law.continuous else "")
+        + (", open arrival" if law.open_arrival else ""),
     )
     print(f"hand law figure written to {figure}")
     return 0

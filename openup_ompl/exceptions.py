@@ -109,7 +109,7 @@ class UnreachableGrasp(InvalidProblem):
             example = f"; e.g. {self.pairs[:3]}" if self.pairs else ""
             why = (
                 f"reachable only in collision ({in_collision} IK solutions with the hand at"
-                f" c, all colliding or closer than {margin * 1e3:.3g} mm{example})"
+                f" its grasp opening, all colliding or closer than {margin * 1e3:.3g} mm{example})"
             )
         else:
             why = "out of reach (no IK solution)"

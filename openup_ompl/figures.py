@@ -222,6 +222,7 @@ def plot_hand_law(
         right.legend(lines, [line.get_label() for line in lines], fontsize=8, loc="lower left")
     kind = " (fixed hand)" if law.fixed is not None else ""
     continuous = ", continuous" if law.continuous else ""
+    continuous += ", open arrival" if law.open_arrival else ""
     axes[0, 0].set_title(
         f"Fig. 3 for this plan: hand law{kind}, u = {law.u:g}, mga = {law.mga:g}{continuous}"
     )
@@ -296,6 +297,7 @@ def plot_law(
         ax.grid(alpha=0.25)
         ax.legend(fontsize=8, loc="lower center")
     variant = ", continuous variant" if law.continuous else ""
+    variant += ", open arrival" if law.open_arrival else ""
     axes[0, 0].set_title(title or f"hand law (Algorithm 3), mga = {law.mga:g}{variant}")
     fig.tight_layout()
     try:

@@ -3,7 +3,8 @@
 :class:`IKGoalRegion` is an ``ob.GoalSampleableRegion``: any OMPL planner that accepts
 sampleable goals (RRTConnect, BITstar, ...) samples goal states from it, each one a fresh
 inverse-kinematics solution computed during planning. A solution counts only if it is
-collision-free with the hand at ``open_hand(0)`` (the close preshape ``c``).
+collision-free with the hand at ``open_hand(0)`` (the close preshape ``c``, or ``c + (w - c) u``
+with the open-arrival variant).
 """
 
 from __future__ import annotations

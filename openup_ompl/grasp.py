@@ -11,8 +11,10 @@ converge) is bisected until the finger is within ``tolerance`` of the surface.
 
 Which joints stop is GraspIt's ``autoGrasp`` rule: when a link touches, the hand joints
 that move it (its own and every hand joint above it on its finger) stop, and the joints
-below it keep closing (a proximal link's contact lets the distal joint wrap on). All
-moving joints advance at the same fraction of their joint range per step. Fingers also
+below it keep closing (a proximal link's contact lets the distal joint wrap on). Each
+moving joint advances by the same fraction of its joint range per unit of progress,
+scaled by the robot file's ``[hand].closing_speed`` (a hand whose distal joints close
+slower wraps its proximal links on first). Fingers also
 stop on obstacles (the table); those contacts are reported apart and do not enter the
 grasp test. Self-collision between fingers is not checked while closing.
 
@@ -191,7 +193,9 @@ class HandCloser:
         n = robot.n_driven
         model = robot.model
         limits = model.upperPositionLimit - model.lowerPositionLimit
-        self._range = limits[robot.hand_idx[:n]]
+        self._speed = limits[robot.hand_idx[:n]]
+        if robot.spec.closing_speed is not None:
+            self._speed = self._speed * robot.spec.closing_speed
         driven_of = {model.getJointId(name): i for i, name in enumerate(robot.spec.hand_joints)}
         multiplier = {model.getJointId(name): 1.0 for name in robot.spec.hand_joints}
         for mimic in robot.mimic:
@@ -270,7 +274,7 @@ class HandCloser:
             raise ConfigError("close: q", q.shape, f"a full configuration of {robot.model.nq}")
         hand = q[robot.hand_idx[:n]].copy()
         target = np.where(np.isnan(self.closed), hand, self.closed)
-        direction = np.sign(target - hand) * self._range  # per unit of progress
+        direction = np.sign(target - hand) * self._speed  # per unit of progress
         active = direction != 0
         touching: dict[tuple[int, int], Contact] = {}
         moving = list(self._fingers)
@@ -292,10 +296,10 @@ class HandCloser:
                 active[moving[i].movers] = False
             if hit.any():
                 continue
-            remaining = np.abs(target - hand) / self._range
+            remaining = np.abs(target - hand) / self._speed
             room = float(remaining[active].min())
             rates = np.array(
-                [np.sum(f.rates * active[f.movers] * self._range[f.movers]) for f in moving]
+                [np.sum(f.rates * active[f.movers] * self._speed[f.movers]) for f in moving]
             )
             clearance = distances.min(axis=1)
             step = max(float(np.min(clearance / np.maximum(rates, 1e-12))), self.options.min_step)

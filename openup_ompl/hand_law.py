@@ -38,6 +38,7 @@ def open_hand(
     mga: float,
     *,
     continuous: bool = False,
+    open_arrival: bool = False,
 ) -> np.ndarray:
     """Open finger configuration for a normalised distance ``d`` (the paper's Algorithm 3).
 
@@ -50,6 +51,14 @@ def open_hand(
     ``c + (d / mga) * ((b - c) + (w - b) * u)`` below ``mga`` instead, which meets the
     plateau ``b + (w - b) u`` exactly at ``d = mga``.
 
+    ``open_arrival=True`` is an extension: Algorithm 3 returns ``c`` at the grasp for
+    every ``u``, so the hand that meets a displaced object is the same whatever the
+    uncertainty; the paper's text ("the open finger configuration to grasp the object
+    varies linearly between c and w") suggests an opening at the grasp that grows with
+    ``u``. This variant arrives at ``c_u = c + (w - c) u`` and keeps the plateau
+    ``b_u = b + (w - b) u``: ``c_u + (d / mga) (b_u - c_u)`` below ``mga`` (continuous
+    at ``mga``; ``continuous`` then changes nothing). At ``u = 0`` both are the paper's.
+
     Args:
         d: Normalised palm-to-grasp distance (Algorithm 1), ``>= 0``; 0 at the grasp,
             1 at the start, larger when the palm is farther than at the start.
@@ -59,6 +68,7 @@ def open_hand(
         u: Pose uncertainty in [0, 1].
         mga: Normalised distance of maximum grip aperture, in (0, 1].
         continuous: Use the variant without the jump at ``mga``.
+        open_arrival: Use the variant that arrives at the grasp opened by ``u``.
 
     Returns:
         The hand configuration, in the order of ``c``. Not clipped to joint limits
@@ -76,10 +86,14 @@ def open_hand(
     c_, b_, w_ = (np.asarray(x, dtype=float) for x in (c, b, w))
     if not (c_.shape == b_.shape == w_.shape and c_.ndim == 1):
         raise ConfigError("c, b, w", (c_.shape, b_.shape, w_.shape), "three vectors of one length")
-    if d <= mga:
-        far = w_ - b_ if continuous else w_ - c_
-        return c_ + (d / mga) * ((b_ - c_) + far * u)
-    return b_ + (w_ - b_) * u
+    plateau = b_ + (w_ - b_) * u
+    if d > mga:
+        return plateau
+    if open_arrival:
+        arrival = c_ + (w_ - c_) * u
+        return arrival + (d / mga) * (plateau - arrival)
+    far = w_ - b_ if continuous else w_ - c_
+    return c_ + (d / mga) * ((b_ - c_) + far * u)
 
 
 @dataclass(frozen=True)
@@ -87,7 +101,7 @@ class HandLaw:
     """The hand law of one problem: referential configurations, ``u``, ``mga`` and limits.
 
     The law is precomputed into an affine form so that the validity checker's hot path
-    costs one multiply-add: ``hand = low_offset + d * low_slope`` for ``d <= mga`` and
+    costs one multiply-add: ``hand = arrival + d * low_slope`` for ``d <= mga`` and
     ``high`` above, then clipped to ``[lower, upper]``.
 
     Attributes:
@@ -99,6 +113,8 @@ class HandLaw:
         lower: Hand joint lower limits.
         upper: Hand joint upper limits.
         continuous: Use the variant without the jump at ``mga``.
+        open_arrival: Use the variant that reaches the grasp opened by ``u``, at
+            ``c + (w - c) u`` (see :func:`open_hand`).
         distance: ``"translation"``: Euclidean distance [m] between the palm origin and the
             grasp position (the default). ``"weighted"``: that plus ``rotation_weight``
             [m/rad] times the palm-to-grasp rotation angle.
@@ -115,9 +131,11 @@ class HandLaw:
     lower: np.ndarray
     upper: np.ndarray
     continuous: bool = False
+    open_arrival: bool = False
     distance: str = "translation"
     rotation_weight: float = 0.1  # [m/rad]
     fixed: np.ndarray | None = None
+    arrival: np.ndarray = field(init=False, repr=False, compare=False)
     low_slope: np.ndarray = field(init=False, repr=False, compare=False)
     high: np.ndarray = field(init=False, repr=False, compare=False)
     clip_low: bool = field(init=False, repr=False, compare=False)
@@ -152,16 +170,23 @@ class HandLaw:
         object.__setattr__(self, "mga", _check_unit("mga", self.mga, low_open=True))
         c, b, w = arrays["c"], arrays["b"], arrays["w"]
         lower, upper = arrays["lower"], arrays["upper"]
-        far = w - b if self.continuous else w - c
-        slope = ((b - c) + far * self.u) / self.mga
+        plateau = b + (w - b) * self.u
+        if self.open_arrival:
+            arrival = c + (w - c) * self.u
+            slope = (plateau - arrival) / self.mga
+        else:
+            arrival = c.copy()
+            far = w - b if self.continuous else w - c
+            slope = ((b - c) + far * self.u) / self.mga
         # The low branch is affine in d: it stays within the limits for every d in
         # [0, mga] when both of its ends do, and then needs no clipping at run time.
-        ends = np.stack([c, c + self.mga * slope])
+        ends = np.stack([arrival, arrival + self.mga * slope])
         clip_low = bool(np.any(ends < lower) or np.any(ends > upper))
         fixed_clipped = None if self.fixed is None else np.clip(self.fixed, lower, upper)
         derived: tuple[tuple[str, np.ndarray | None], ...] = (
+            ("arrival", arrival),
             ("low_slope", slope),
-            ("high", np.clip(b + (w - b) * self.u, lower, upper)),
+            ("high", np.clip(plateau, lower, upper)),
             ("fixed_clipped", fixed_clipped),
         )
         for name, item in derived:
@@ -181,14 +206,14 @@ class HandLaw:
             return self.fixed_clipped.copy()
         if d > self.mga:
             return self.high.copy()
-        return np.clip(self.c + d * self.low_slope, self.lower, self.upper)
+        return np.clip(self.arrival + d * self.low_slope, self.lower, self.upper)
 
     def batch(self, d: np.ndarray) -> np.ndarray:
         """Hand configurations for a vector of distances: shape ``(len(d), size)``."""
         d = np.asarray(d, dtype=float)[:, None]
         if self.fixed_clipped is not None:
             return np.repeat(self.fixed_clipped[None, :], d.shape[0], axis=0)
-        low = np.clip(self.c + d * self.low_slope, self.lower, self.upper)
+        low = np.clip(self.arrival + d * self.low_slope, self.lower, self.upper)
         return np.where(d > self.mga, self.high, low)
 
     def with_options(self, **changes: object) -> HandLaw:
@@ -204,6 +229,7 @@ class HandLaw:
                 "lower",
                 "upper",
                 "continuous",
+                "open_arrival",
                 "distance",
                 "rotation_weight",
                 "fixed",
@@ -221,6 +247,7 @@ class HandLaw:
             "u": self.u,
             "mga": self.mga,
             "continuous": self.continuous,
+            "open_arrival": self.open_arrival,
             "distance": self.distance,
             "rotation_weight": self.rotation_weight,
             "fixed": None if self.fixed is None else self.fixed.tolist(),

@@ -76,6 +76,8 @@ class GraspPlanningSetup:
         problem: The loaded scene (:func:`~openup_ompl.scene.load_scene`).
         u: Pose uncertainty in [0, 1] overriding the scene's.
         continuous: Use the law without the jump at ``mga``.
+        open_arrival: Use the law that reaches the grasp opened by ``u`` (an extension,
+            see :func:`~openup_ompl.hand_law.open_hand`).
         fixed_hand: The classical baseline: keep the hand at this configuration (``"c"``,
             ``"b"``, ``"w"`` or joint values) for the whole reach instead of the law.
         resolution: Motion-check resolution [m]: no robot point moves more between two
@@ -107,6 +109,7 @@ class GraspPlanningSetup:
         u: float | None = None,
         *,
         continuous: bool | None = None,
+        open_arrival: bool | None = None,
         fixed_hand: str | Sequence[float] | None = None,
         resolution: float = DEFAULT_RESOLUTION,
         padding: float | None = None,
@@ -121,7 +124,11 @@ class GraspPlanningSetup:
         self.problem = problem
         robot = problem.robot
         self.law = problem.hand_law.with_options(
-            **{k: v for k, v in (("u", u), ("continuous", continuous)) if v is not None},
+            **{
+                k: v
+                for k, v in (("u", u), ("continuous", continuous), ("open_arrival", open_arrival))
+                if v is not None
+            },
             fixed=_hand_override(fixed_hand, problem.hand_law),
         )
         self.ikbirrt_options = ikbirrt_options or IKBiRRTOptions()

@@ -152,6 +152,8 @@ class RobotSpec:
         closed: The configuration each hand joint closes towards when grasping
             (:mod:`~openup_ompl.grasp`), or ``None``: the joint limit on ``c``'s side of
             ``w`` (a joint with ``c == w`` stays).
+        closing_speed: Relative closing speed of each hand joint, in fractions of its
+            joint range per unit of closing progress (default: 1 for every joint).
         convex: Replace collision meshes by their convex hulls (faster, conservative).
         padding: Extra clearance [m] the robot keeps from obstacles and object (not
             applied to self-collision).
@@ -179,6 +181,7 @@ class RobotSpec:
     mount: MountSpec | None = None
     mimic: tuple[MimicSpec, ...] = ()
     closed: np.ndarray | None = None
+    closing_speed: np.ndarray | None = None
 
     @classmethod
     def from_file(cls, path: Path) -> RobotSpec:
@@ -247,7 +250,17 @@ class RobotSpec:
             else _toml.vector(
                 table["closed"], f"{where}: hand.closed (one value per hand joint)", n
             ),
+            closing_speed=None
+            if "closing_speed" not in table
+            else _closing_speed(table["closing_speed"], f"{where}: hand.closing_speed", n),
         )
+
+
+def _closing_speed(raw: Any, where: str, n: int) -> np.ndarray:
+    speed = _toml.vector(raw, f"{where} (one value per hand joint)", n)
+    if np.any(speed <= 0) or np.any(speed > 1):
+        raise ConfigError(where, raw, "relative speeds in (0, 1]")
+    return speed
 
 
 def available_robots() -> dict[str, Path]:

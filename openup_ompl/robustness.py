@@ -94,6 +94,8 @@ class RobustnessOptions:
         planner: Planner name (:data:`~openup_ompl.planning.PLANNERS`).
         time_limit: Planning time limit [s].
         friction: Coulomb coefficient of the force-closure test.
+        open_arrival: Plan with the law that reaches the grasp opened by ``u`` (an
+            extension, :func:`~openup_ompl.hand_law.open_hand`) instead of Algorithm 3.
     """
 
     us: tuple[float, ...] = (0.0, 0.1, 0.3, 0.5, 1.0)
@@ -104,6 +106,7 @@ class RobustnessOptions:
     planner: str = "ikbirrt"
     time_limit: float = 5.0  # [s]
     friction: float = 0.5
+    open_arrival: bool = False
 
     def __post_init__(self) -> None:
         from openup_ompl.planning import PLANNERS
@@ -214,6 +217,7 @@ def make_tasks(scene: str | Path, options: RobustnessOptions) -> list[Task]:
         "time_limit": float(options.time_limit),
         "perturbations": [list(cell) for cell in cells],
         "friction": float(options.friction),
+        "open_arrival": bool(options.open_arrival),
     }
     digest = hashlib.sha1(json.dumps(shared, sort_keys=True).encode()).hexdigest()[:10]
     tasks = []
@@ -239,6 +243,7 @@ def robustness_run(
     time_limit: float,
     perturbations: Sequence[Sequence[float]],
     friction: float,
+    open_arrival: bool = False,
 ) -> dict[str, Any]:
     """Plan once at the nominal pose, then execute against every perturbation (inside a
     task process).
@@ -256,7 +261,7 @@ def robustness_run(
     problem = check_scene(scene)
     record: dict[str, Any] = {"u": u, "seed": seed, "planned": False, "error": None}
     try:
-        setup = GraspPlanningSetup(problem, u=u)
+        setup = GraspPlanningSetup(problem, u=u, open_arrival=open_arrival)
         plan = setup.solve(time_limit=time_limit, planner=planner, seed=seed, simplify=True)
     except (PlanningFailed, InvalidProblem) as error:
         record["error"] = str(error)
@@ -281,6 +286,8 @@ def robustness_run(
         world = CollisionWorld(true, num_threads=1)
         flags = world.batch_in_collision(path, stop_at_first=False)
         hit = int(np.argmax(flags)) if flags.any() else None
+        if hit is not None:
+            arm = plan.path[hit, problem.robot.arm_idx]
         grasp = HandCloser(true).close(plan.path[-1])
         assert true.object is not None
         closure = len(grasp.contacts) > 0 and force_closure(
@@ -293,6 +300,8 @@ def robustness_run(
                 "yaw": yaw,
                 "collision": hit is not None,
                 "collision_row": hit,
+                # Algorithm 1's d where the plan first touches: how far from the grasp.
+                "collision_d": setup.checker.distance(arm) if hit is not None else None,
                 "pairs": world.colliding_pairs(plan.path[hit]) if hit is not None else [],
                 "force_closure": bool(closure),
                 "enclosed": enclosed(grasp.normals, object_axis(true.object)),
@@ -488,8 +497,9 @@ def run_robustness(
     trials.write_text(json.dumps(records, indent=1) + "\n")
     csv_path = write_csv(rows, out / "robustness.csv")
     markdown = out / "robustness.md"
+    law = "open-arrival variant" if options.open_arrival else "Algorithm 3"
     title = (
-        f"{problem.robot.name}, {scene.name}: {options.seeds} plans per u "
+        f"{problem.robot.name}, {scene.name}, {law}: {options.seeds} plans per u "
         f"({options.planner}, {options.time_limit:g} s), friction {options.friction:g}"
     )
     markdown.write_text(

@@ -150,7 +150,7 @@ def load_scene(path: str | Path, robot: Robot | None = None) -> Problem:
     hand = raw.get("hand", {})
     if not isinstance(hand, dict):
         raise ConfigError(f"{where}: hand", hand, "a [hand] table")
-    known = {"c", "b", "w", "u", "mga", "continuous", "distance", "rotation_weight"}
+    known = {"c", "b", "w", "u", "mga", "continuous", "open_arrival", "distance", "rotation_weight"}
     unknown = sorted(set(hand) - known)
     if unknown:
         raise ConfigError(
@@ -169,10 +169,11 @@ def load_scene(path: str | Path, robot: Robot | None = None) -> Problem:
         overrides["rotation_weight"] = _toml.number(
             hand["rotation_weight"], f"{where}: hand.rotation_weight", low=0.0
         )
-    if "continuous" in hand:
-        if not isinstance(hand["continuous"], bool):
-            raise ConfigError(f"{where}: hand.continuous", hand["continuous"], "true or false")
-        overrides["continuous"] = hand["continuous"]
+    for key in ("continuous", "open_arrival"):
+        if key in hand:
+            if not isinstance(hand[key], bool):
+                raise ConfigError(f"{where}: hand.{key}", hand[key], "true or false")
+            overrides[key] = hand[key]
     if "distance" in hand:
         if hand["distance"] not in DISTANCE_KINDS:
             raise ConfigError(

@@ -157,7 +157,7 @@ class CoupledChecker:
         else:
             hand = context.hand
             np.multiply(law.low_slope, d, out=hand)
-            np.add(hand, law.c, out=hand)
+            np.add(hand, law.arrival, out=hand)
             if law.clip_low:
                 np.clip(hand, law.lower, law.upper, out=hand)
             q[self._hand_sel] = hand

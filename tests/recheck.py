@@ -28,6 +28,9 @@ def paper_open_hand(d: float, law: dict[str, Any]) -> np.ndarray:
     u, mga = law["u"], law["mga"]
     if law.get("fixed") is not None:
         return np.array(law["fixed"])
+    if d <= mga and law.get("open_arrival"):
+        arrival, plateau = c + (w - c) * u, b + (w - b) * u
+        return arrival + (d / mga) * (plateau - arrival)
     if d <= mga:
         far = (w - b) if law["continuous"] else (w - c)
         return c + (d / mga) * ((b - c) + far * u)

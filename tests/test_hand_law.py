@@ -66,6 +66,26 @@ CONTINUOUS_VALUES = [
     (0.3, 1.0, [0.65, 1.65]),
 ]
 
+# (u, d, expected) for open_arrival=True: arrival c_u = c + (w - c) u, plateau
+# b_u = b + (w - b) u, and c_u + (d / mga) * (b_u - c_u) in between.
+OPEN_ARRIVAL_VALUES = [
+    (0.0, 0.1, [0.2, 1.2]),  # u = 0: the paper's law
+    (0.3, 0.0, [0.3, 1.3]),  # c_u = c + 0.3
+    (0.3, 0.1, [0.44, 1.44]),  # 0.3 + 0.4 * (0.65 - 0.3)
+    (0.3, MGA, [0.65, 1.65]),
+    (0.3, MGA + EPS, [0.65, 1.65]),
+    (1.0, 0.0, [1.0, 2.0]),  # arrives at w
+    (1.0, 0.1, [1.0, 2.0]),
+    (1.0, 2.0, [1.0, 2.0]),
+]
+
+
+@pytest.mark.parametrize(("u", "d", "expected"), OPEN_ARRIVAL_VALUES)
+def test_open_hand_open_arrival_matches_hand_computed_values(u, d, expected):
+    """open_hand(open_arrival=True) reaches the grasp at c + (w - c) u, computed by hand."""
+    hand = ou.open_hand(d, C, B, W, u, MGA, open_arrival=True)
+    np.testing.assert_allclose(hand, expected, rtol=0, atol=1e-9)
+
 
 @pytest.mark.parametrize(("u", "d", "expected"), PAPER_VALUES)
 def test_open_hand_matches_hand_computed_values(u, d, expected):
@@ -149,13 +169,14 @@ def test_hand_law_clips_below_the_lower_limit(panda):
     np.testing.assert_allclose(law(0.0), [0.0, 0.0])
 
 
-@pytest.mark.parametrize("continuous", [False, True])
+@pytest.mark.parametrize("variant", ["paper", "continuous", "open_arrival"])
 @pytest.mark.parametrize("u", [0.0, 0.3, 1.0])
-def test_hand_law_equals_clipped_open_hand(panda, u, continuous):
+def test_hand_law_equals_clipped_open_hand(panda, u, variant):
     """HandLaw(d) equals open_hand(d) with the same parameters, clipped to the limits."""
-    law = panda.hand_law(u=u, continuous=continuous)
+    options = {"continuous": variant == "continuous", "open_arrival": variant == "open_arrival"}
+    law = panda.hand_law(u=u, **options)
     for d in [0.0, 0.05, law.mga - EPS, law.mga, law.mga + EPS, 0.7, 1.0, 1.5]:
-        raw = ou.open_hand(d, law.c, law.b, law.w, u, law.mga, continuous=continuous)
+        raw = ou.open_hand(d, law.c, law.b, law.w, u, law.mga, **options)
         expected = np.clip(raw, law.lower, law.upper)
         np.testing.assert_allclose(law(d), expected, rtol=0, atol=1e-12)
 

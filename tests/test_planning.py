@@ -51,6 +51,21 @@ def test_simplified_plan_rechecks(default_setup: oo.GraspPlanningSetup, tmp_path
     assert_plan_rechecks(plan, tmp_path)
 
 
+@pytest.mark.parametrize("planner", ["ikbirrt", "rrtconnect"])
+def test_open_arrival_plans_reach_the_grasp_opened_by_u(planner: str, tmp_path: Path) -> None:
+    """With the open-arrival variant the hand reaches the grasp at c + (w - c) u on the
+    paper's robot; every plan re-checks against that law written out from its file."""
+    problem = oo.load_scene(oo.robustness.default_robustness_scene())
+    setup = oo.GraspPlanningSetup(problem, u=0.3, open_arrival=True)
+    law = setup.law
+    arrival = np.clip(law.c + (law.w - law.c) * 0.3, law.lower, law.upper)
+    assert np.abs(arrival - law.c).max() > 0.1  # it differs from Algorithm 3's c
+    for seed in range(3):
+        plan = setup.solve(time_limit=5.0, planner=planner, seed=seed)
+        np.testing.assert_allclose(plan.hand_path[-1], arrival, atol=1e-4)  # d ~ 1e-5 there
+        assert_plan_rechecks(plan, tmp_path)
+
+
 def test_same_seed_same_path(default_setup: oo.GraspPlanningSetup) -> None:
     """IKBiRRT with the same seed returns the same path; another seed another path."""
     first = default_setup.solve(planner="ikbirrt", seed=7).path

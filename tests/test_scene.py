@@ -53,6 +53,16 @@ def test_default_scene_applies_hand_law_overrides(panda):
     np.testing.assert_allclose(law.upper, [0.04, 0.04])
 
 
+def test_scene_selects_the_open_arrival_variant(panda, default_scene_text, write_file):
+    """[hand] open_arrival = true gives the law that reaches the grasp at c + (w - c) u."""
+    path = write_file(
+        "open.toml", edited(default_scene_text, "u = 0.3", "u = 0.3\nopen_arrival = true")
+    )
+    law = ou.load_scene(path, robot=panda).hand_law
+    assert law.open_arrival
+    np.testing.assert_allclose(law(0.0), law.c + (law.w - law.c) * 0.3)
+
+
 def test_scene_without_hand_table_uses_robot_law(panda, empty_scene_text, write_file):
     """A scene with no [hand] and no start gets the robot's law and the robot's home."""
     problem = ou.load_scene(write_file("plain.toml", empty_scene_text), robot=panda)
@@ -138,6 +148,7 @@ BAD_EDITS = {
     "u below 0": ("u = 0.3", "u = -0.1", "hand.u"),
     "mga zero": ("mga = 0.25", "mga = 0.0", "hand.mga"),
     "unknown hand key": ("u = 0.3", "u = 0.3\nspread = 1.0", "hand.spread"),
+    "open_arrival not a bool": ("u = 0.3", 'u = 0.3\nopen_arrival = "yes"', "hand.open_arrival"),
     "c of wrong length": ("c = [0.035, 0.035]", "c = [0.035]", "hand.c"),
     "duplicate obstacles": ('name = "wall"', 'name = "table"', "table"),
     "object named like an obstacle": ('name = "can"', 'name = "wall"', "wall"),

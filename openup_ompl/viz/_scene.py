@@ -137,6 +137,7 @@ class PlanScene:
                 lower=model.lowerPositionLimit[hand_idx],
                 upper=model.upperPositionLimit[hand_idx],
                 continuous=bool(table.get("continuous", False)),
+                open_arrival=bool(table.get("open_arrival", False)),
                 distance=str(table.get("distance", "translation")),
                 rotation_weight=float(table.get("rotation_weight", 0.1)),
                 fixed=table.get("fixed"),
