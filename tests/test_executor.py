@@ -114,6 +114,23 @@ def test_dask_and_pool_give_the_same_benchmark_records(tmp_path: Path) -> None:
     assert same(pool) == same(dask)
 
 
+def test_dask_and_pool_give_the_same_robustness_records(tmp_path: Path) -> None:
+    """The robustness sweep goes through the same executor: a Dask LocalCluster and the
+    local pool give the same trials (plans seeded, every perturbation re-run)."""
+    from openup_ompl.robustness import RobustnessOptions, run_robustness
+
+    options = RobustnessOptions(us=(0.3,), deltas=(0.0, 0.01), seeds=2)
+    pool = run_robustness(None, options, tmp_path / "pool", workers=2, quiet=True)
+    with _local_cluster() as cluster:
+        dask = run_robustness(
+            None, options, tmp_path / "dask", scheduler=cluster.scheduler_address, quiet=True
+        )
+    assert len(pool.records) == 2 and all(r["planned"] for r in pool.records)
+    assert [r["trials"] for r in pool.records] == [r["trials"] for r in dask.records]
+    assert [r["rows"] for r in pool.records] == [r["rows"] for r in dask.records]
+    assert pool.rows == dask.rows
+
+
 def test_rerun_skips_finished_runs(tmp_path: Path) -> None:
     """A second run of the same sweep runs nothing and leaves the shards untouched."""
     tasks = _tasks(2)
