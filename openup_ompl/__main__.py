@@ -195,6 +195,13 @@ def build_parser() -> argparse.ArgumentParser:
         "--friction", type=float, default=0.5, help="Coulomb coefficient of the grasp test"
     )
     robust.add_argument(
+        "--torsion",
+        type=float,
+        default=None,
+        help="soft-finger torsional friction [m] of the grasp test (default: the robot's,"
+        " else 0: point contacts)",
+    )
+    robust.add_argument(
         "--open-arrival",
         action="store_true",
         help="plan with the extension that reaches the grasp opened by u",
@@ -215,14 +222,16 @@ def _robustness_command(args: argparse.Namespace) -> int:
     from openup_ompl.robustness import RobustnessOptions, markdown_tables, run_robustness
 
     given = {"us": args.u, "deltas": args.delta, "yaws": args.yaw}
+    sweep: dict[str, Any] = {key: tuple(value) for key, value in given.items() if value}
     options = RobustnessOptions(
-        **{key: tuple(value) for key, value in given.items() if value},
+        **sweep,
         seeds=args.seeds,
         first_seed=args.seed,
         planner=args.planner,
         time_limit=args.time,
         friction=args.friction,
         open_arrival=args.open_arrival,
+        torsion=args.torsion,
     )
     result = run_robustness(
         args.scene,

@@ -404,14 +404,22 @@ def contact_wrenches(
     friction: float = DEFAULT_FRICTION,
     edges: int = 8,
     center: Sequence[float] | None = None,
+    torsion: float = 0.0,
 ) -> np.ndarray:
-    """The primitive wrenches ``(6, K * edges)`` of point contacts with friction.
+    """The primitive wrenches ``(6, K * edges)`` of point contacts with friction
+    (``(6, K * (edges + 2))`` with ``torsion``).
 
     Each contact's friction cone (half-angle ``atan(friction)`` about the inward
     ``normal``) is linearised by ``edges`` unit-normal-force generators; a generator
     ``f`` at ``p`` has wrench ``[f, (p - center) x f / scale]``, with torques divided by
     the contacts' mean distance to ``center`` [m] (default: their centroid) so that both
     halves have comparable size. The scale changes no decision.
+
+    With ``torsion`` > 0 [m] the contacts are soft fingers: each also resists a torque
+    about its normal of up to ``torsion`` times its normal force (a pad's torsional
+    friction, about ``2/3 friction`` times the contact patch radius), linearised by two
+    more generators ``[n, (p - center) x n / scale +- torsion n / scale]``: an inner
+    approximation of the soft-finger limit, so a grasp found in force closure is one.
     """
     p, n = _as_contacts(points, normals, "contact_wrenches")
     if not (np.isfinite(friction) and friction >= 0):
@@ -432,6 +440,13 @@ def contact_wrenches(
         + friction * np.sin(angles)[None, :, None] * t2[:, None, :]
     ).reshape(-1, 3)
     torques = np.cross(np.repeat(arms, edges, axis=0), forces) / scale
+    if not (np.isfinite(torsion) and 0 <= torsion <= 0.1):
+        raise ConfigError("torsion", torsion, "a torsional friction lever in [0, 0.1] m")
+    if torsion > 0:
+        centre = np.cross(arms, n) / scale
+        twist = torsion * n / scale
+        forces = np.concatenate([forces, n, n])
+        torques = np.concatenate([torques, centre + twist, centre - twist])
     return np.concatenate([forces, torques], axis=1).T
 
 
@@ -442,6 +457,7 @@ def force_closure(
     friction: float = DEFAULT_FRICTION,
     edges: int = 8,
     center: Sequence[float] | None = None,
+    torsion: float = 0.0,
 ) -> bool:
     """Whether point contacts with friction hold the object in force closure: their
     wrenches (:func:`contact_wrenches`) positively span R^6, so the fingers can resist
@@ -453,8 +469,13 @@ def force_closure(
         friction: Coulomb coefficient (default :data:`DEFAULT_FRICTION`).
         edges: Generators of each linearised cone (8: an inscribed octagon).
         center: Torque reference [m] (the decision does not depend on it).
+        torsion: Soft-finger torsional friction [m] (0: point contacts, under which two
+            contacts are never in force closure: nothing resists a rotation about the
+            line through them).
     """
-    wrenches = contact_wrenches(points, normals, friction=friction, edges=edges, center=center)
+    wrenches = contact_wrenches(
+        points, normals, friction=friction, edges=edges, center=center, torsion=torsion
+    )
     return positively_spans(wrenches)
 
 

@@ -154,6 +154,8 @@ class RobotSpec:
             ``w`` (a joint with ``c == w`` stays).
         closing_speed: Relative closing speed of each hand joint, in fractions of its
             joint range per unit of closing progress (default: 1 for every joint).
+        torsion: Soft-finger torsional friction [m] of the fingers' pads for the grasp
+            test (:func:`~openup_ompl.grasp.force_closure`); 0: point contacts.
         convex: Replace collision meshes by their convex hulls (faster, conservative).
         padding: Extra clearance [m] the robot keeps from obstacles and object (not
             applied to self-collision).
@@ -182,6 +184,7 @@ class RobotSpec:
     mimic: tuple[MimicSpec, ...] = ()
     closed: np.ndarray | None = None
     closing_speed: np.ndarray | None = None
+    torsion: float = 0.0
 
     @classmethod
     def from_file(cls, path: Path) -> RobotSpec:
@@ -253,6 +256,9 @@ class RobotSpec:
             closing_speed=None
             if "closing_speed" not in table
             else _closing_speed(table["closing_speed"], f"{where}: hand.closing_speed", n),
+            torsion=_toml.number(
+                table.get("torsion", 0.0), f"{where}: hand.torsion", low=0.0, high=0.1
+            ),
         )
 
 

@@ -96,6 +96,8 @@ class RobustnessOptions:
         friction: Coulomb coefficient of the force-closure test.
         open_arrival: Plan with the law that reaches the grasp opened by ``u`` (an
             extension, :func:`~openup_ompl.hand_law.open_hand`) instead of Algorithm 3.
+        torsion: Soft-finger torsional friction [m] of the grasp test; ``None``: the
+            robot file's ``[hand].torsion`` (0, point contacts, if it has none).
     """
 
     us: tuple[float, ...] = (0.0, 0.1, 0.3, 0.5, 1.0)
@@ -107,6 +109,7 @@ class RobustnessOptions:
     time_limit: float = 5.0  # [s]
     friction: float = 0.5
     open_arrival: bool = False
+    torsion: float | None = None
 
     def __post_init__(self) -> None:
         from openup_ompl.planning import PLANNERS
@@ -150,6 +153,10 @@ class RobustnessOptions:
             raise ConfigError("time", self.time_limit, "a positive number of seconds")
         if not (math.isfinite(self.friction) and self.friction >= 0):
             raise ConfigError("friction", self.friction, "a coefficient >= 0")
+        if self.torsion is not None and not (
+            math.isfinite(self.torsion) and 0 <= self.torsion <= 0.1
+        ):
+            raise ConfigError("torsion", self.torsion, "a torsional friction lever in [0, 0.1] m")
 
 
 def perturbations(
@@ -218,6 +225,7 @@ def make_tasks(scene: str | Path, options: RobustnessOptions) -> list[Task]:
         "perturbations": [list(cell) for cell in cells],
         "friction": float(options.friction),
         "open_arrival": bool(options.open_arrival),
+        "torsion": options.torsion,
     }
     digest = hashlib.sha1(json.dumps(shared, sort_keys=True).encode()).hexdigest()[:10]
     tasks = []
@@ -244,6 +252,7 @@ def robustness_run(
     perturbations: Sequence[Sequence[float]],
     friction: float,
     open_arrival: bool = False,
+    torsion: float | None = None,
 ) -> dict[str, Any]:
     """Plan once at the nominal pose, then execute against every perturbation (inside a
     task process).
@@ -259,6 +268,8 @@ def robustness_run(
     from openup_ompl.planning import GraspPlanningSetup
 
     problem = check_scene(scene)
+    if torsion is None:
+        torsion = problem.robot.spec.torsion
     record: dict[str, Any] = {"u": u, "seed": seed, "planned": False, "error": None}
     try:
         setup = GraspPlanningSetup(problem, u=u, open_arrival=open_arrival)
@@ -291,7 +302,7 @@ def robustness_run(
         grasp = HandCloser(true).close(plan.path[-1])
         assert true.object is not None
         closure = len(grasp.contacts) > 0 and force_closure(
-            grasp.points, grasp.normals, friction=friction
+            grasp.points, grasp.normals, friction=friction, torsion=torsion
         )
         trials.append(
             {
@@ -498,9 +509,11 @@ def run_robustness(
     csv_path = write_csv(rows, out / "robustness.csv")
     markdown = out / "robustness.md"
     law = "open-arrival variant" if options.open_arrival else "Algorithm 3"
+    torsion = problem.robot.spec.torsion if options.torsion is None else options.torsion
+    contacts = f", soft fingers {torsion * 1e3:g} mm" if torsion > 0 else ""
     title = (
         f"{problem.robot.name}, {scene.name}, {law}: {options.seeds} plans per u "
-        f"({options.planner}, {options.time_limit:g} s), friction {options.friction:g}"
+        f"({options.planner}, {options.time_limit:g} s), friction {options.friction:g}{contacts}"
     )
     markdown.write_text(
         f"# Robustness to object pose errors\n\n{title}\n\n" + markdown_tables(rows)

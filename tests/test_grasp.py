@@ -163,6 +163,32 @@ def test_force_closure_false_for_two_fingers_on_the_same_side() -> None:
     assert not enclosed(normals, [0, 0, 1])
 
 
+def test_soft_fingers_hold_an_antipodal_pinch() -> None:
+    """Two opposed point contacts never reach force closure (nothing resists a turn
+    about the line through them); as soft fingers with torsional friction they do."""
+    points, normals = _ring([0, 180])
+    for mu in (0.5, 2.0):
+        assert not force_closure(points, normals, friction=mu)
+        assert force_closure(points, normals, friction=mu, torsion=0.002)
+    assert not force_closure(points, normals, friction=0.0, torsion=0.002)  # no friction
+    with pytest.raises(ConfigError, match="torsion"):
+        force_closure(points, normals, torsion=-0.001)
+
+
+def test_panda_pinch_is_in_force_closure_with_its_pads(
+    panda_grasp: tuple[oo.Problem, np.ndarray],
+) -> None:
+    """The Panda's two pads on the can: force closure with the robot file's torsional
+    friction, not with point contacts."""
+    problem, q = panda_grasp
+    result = close_hand(problem, q)
+    assert len(result.fingers) == 2
+    torsion = problem.robot.spec.torsion
+    assert torsion > 0
+    assert force_closure(result.points, result.normals, torsion=torsion)
+    assert not force_closure(result.points, result.normals)
+
+
 def test_force_closure_matches_the_hand_computed_threshold() -> None:
     """Three contacts on a sphere's equator at 0 and +-beta: the normals pass through the
     centre, so force closure needs the friction cones (half-angle atan(mu)) to leave no
