@@ -245,6 +245,8 @@ def _robustness_command(args: argparse.Namespace) -> int:
     print(f"table written to {result.csv} and {result.markdown}")
     if result.plot is not None:
         print(f"plot written to {result.plot}")
+    if result.grasps is not None:
+        print(f"grasps of one plan written to {result.grasps}")
     print(f"every trial in {result.trials}")
     return 0
 

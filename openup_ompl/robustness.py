@@ -33,7 +33,7 @@ import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pinocchio as pin
@@ -43,6 +43,11 @@ from openup_ompl.exceptions import ConfigError, InvalidProblem
 from openup_ompl.executor import Task, load_records, run_tasks
 from openup_ompl.scene import Problem, Shape
 
+if TYPE_CHECKING:
+    from openup_ompl.grasp import GraspResult
+    from openup_ompl.plan import Plan
+    from openup_ompl.planning import GraspPlanningSetup
+
 __all__ = [
     "CSV_COLUMNS",
     "MAX_DELTA",
@@ -50,6 +55,7 @@ __all__ = [
     "RobustnessResult",
     "default_robustness_scene",
     "displaced",
+    "execute",
     "make_tasks",
     "markdown_tables",
     "perturbations",
@@ -262,9 +268,7 @@ def robustness_run(
         has ``dx, dy, yaw, collision, collision_row, pairs, force_closure, enclosed,
         contacts, fingers, success``.
     """
-    from openup_ompl.collision import CollisionWorld
     from openup_ompl.exceptions import PlanningFailed
-    from openup_ompl.grasp import HandCloser, enclosed, force_closure, object_axis
     from openup_ompl.planning import GraspPlanningSetup
 
     problem = check_scene(scene)
@@ -290,39 +294,61 @@ def robustness_run(
         ]
         return record
     record.update(planned=True, solve_time=plan.solve_time_s, rows=int(plan.path.shape[0]))
-    path = np.asfortranarray(plan.path.T)
-    trials = []
-    for dx, dy, yaw in perturbations:
-        true = displaced(problem, dx, dy, yaw)
-        world = CollisionWorld(true, num_threads=1)
-        flags = world.batch_in_collision(path, stop_at_first=False)
-        hit = int(np.argmax(flags)) if flags.any() else None
-        if hit is not None:
-            arm = plan.path[hit, problem.robot.arm_idx]
-        grasp = HandCloser(true).close(plan.path[-1])
-        assert true.object is not None
-        closure = len(grasp.contacts) > 0 and force_closure(
-            grasp.points, grasp.normals, friction=friction, torsion=torsion
-        )
-        trials.append(
-            {
-                "dx": dx,
-                "dy": dy,
-                "yaw": yaw,
-                "collision": hit is not None,
-                "collision_row": hit,
-                # Algorithm 1's d where the plan first touches: how far from the grasp.
-                "collision_d": setup.checker.distance(arm) if hit is not None else None,
-                "pairs": world.colliding_pairs(plan.path[hit]) if hit is not None else [],
-                "force_closure": bool(closure),
-                "enclosed": enclosed(grasp.normals, object_axis(true.object)),
-                "contacts": len(grasp.contacts),
-                "fingers": sorted(grasp.fingers),
-                "success": hit is None and bool(closure),
-            }
-        )
-    record["trials"] = trials
+    record["trials"] = [
+        execute(setup, plan, dx, dy, yaw, friction=friction, torsion=torsion)[0]
+        for dx, dy, yaw in perturbations
+    ]
     return record
+
+
+def execute(
+    setup: GraspPlanningSetup,
+    plan: Plan,
+    dx: float,
+    dy: float,
+    yaw: float = 0.0,
+    *,
+    friction: float = 0.5,
+    torsion: float = 0.0,
+) -> tuple[dict[str, Any], GraspResult]:
+    """Execute one plan against the object displaced by ``(dx, dy, yaw)``: re-check every
+    row against the true scene, then close the hand at the end of the plan.
+
+    Returns:
+        The trial (``dx, dy, yaw, collision, collision_row, collision_d, pairs,
+        force_closure, enclosed, contacts, fingers, success``) and the closed hand.
+    """
+    from openup_ompl.collision import CollisionWorld
+    from openup_ompl.grasp import HandCloser, enclosed, force_closure, object_axis
+
+    problem = setup.problem
+    true = displaced(problem, dx, dy, yaw)
+    assert true.object is not None
+    world = CollisionWorld(true, num_threads=1)
+    flags = world.batch_in_collision(np.asfortranarray(plan.path.T), stop_at_first=False)
+    hit = int(np.argmax(flags)) if flags.any() else None
+    grasp = HandCloser(true).close(plan.path[-1])
+    closure = len(grasp.contacts) > 0 and force_closure(
+        grasp.points, grasp.normals, friction=friction, torsion=torsion
+    )
+    trial = {
+        "dx": dx,
+        "dy": dy,
+        "yaw": yaw,
+        "collision": hit is not None,
+        "collision_row": hit,
+        # Algorithm 1's d where the plan first touches: how far from the grasp.
+        "collision_d": None
+        if hit is None
+        else setup.checker.distance(plan.path[hit, problem.robot.arm_idx]),
+        "pairs": world.colliding_pairs(plan.path[hit]) if hit is not None else [],
+        "force_closure": bool(closure),
+        "enclosed": enclosed(grasp.normals, object_axis(true.object)),
+        "contacts": len(grasp.contacts),
+        "fingers": sorted(grasp.fingers),
+        "success": hit is None and bool(closure),
+    }
+    return trial, grasp
 
 
 def summarize(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -459,6 +485,9 @@ class RobustnessResult:
         csv: ``robustness.csv``.
         markdown: ``robustness.md``.
         plot: ``robustness.png``, or ``None`` without matplotlib.
+        grasps: ``grasps.png`` (the paper's Fig. 1: one plan's grasp, open and closed,
+            at each error direction), or ``None`` without matplotlib or when its plan
+            failed.
         trials: ``trials.json`` (every record).
         rows: The CSV rows.
         records: One record per ``(u, seed)``.
@@ -470,6 +499,7 @@ class RobustnessResult:
     trials: Path
     rows: list[dict[str, Any]]
     records: list[dict[str, Any]]
+    grasps: Path | None = None
 
 
 def run_robustness(
@@ -526,4 +556,28 @@ def run_robustness(
     except MissingExtra as error:
         print(f"no plot: {error}", file=sys.stderr)
         plot = None
-    return RobustnessResult(csv_path, markdown, plot, trials, rows, records)
+    grasps = None if plot is None else _grasp_figure(problem, options, torsion, out / "grasps.png")
+    return RobustnessResult(csv_path, markdown, plot, trials, rows, records, grasps)
+
+
+def _grasp_figure(
+    problem: Problem, options: RobustnessOptions, torsion: float, out: Path
+) -> Path | None:
+    """``grasps.png`` for one plan: ``u = 0.3`` (or the middle ``u``), the first seed,
+    the nominal pose and the largest error up to 2 cm in each direction."""
+    from openup_ompl.exceptions import PlanningFailed
+    from openup_ompl.planning import GraspPlanningSetup
+    from openup_ompl.viz.grasps import write_grasp_figure
+
+    u = 0.3 if 0.3 in options.us else sorted(options.us)[len(options.us) // 2]
+    moved = [d for d in options.deltas if 0 < d <= 0.02] or [d for d in options.deltas if d > 0]
+    cells = perturbations([0.0, *([max(moved)] if moved else [])])
+    try:
+        setup = GraspPlanningSetup(problem, u=u, open_arrival=options.open_arrival)
+        plan = setup.solve(
+            options.time_limit, options.planner, seed=options.first_seed, simplify=True
+        )
+    except (PlanningFailed, InvalidProblem) as error:
+        print(f"no grasp figure: {error}", file=sys.stderr)
+        return None
+    return write_grasp_figure(setup, plan, cells, out, friction=options.friction, torsion=torsion)

@@ -67,6 +67,7 @@ def test_small_sweep_writes_consistent_counts(small_sweep) -> None:  # type: ign
         assert all(t["success"] == (not t["collision"] and t["force_closure"]) for t in mine)
     assert (out / "robustness.md").read_text().count("/") >= 10
     assert result.plot is not None and result.plot.stat().st_size > 10_000
+    assert result.grasps == out / "grasps.png" and result.grasps.stat().st_size > 20_000
 
 
 def test_nominal_pose_succeeds_and_large_side_errors_collide(small_sweep) -> None:  # type: ignore[no-untyped-def]
