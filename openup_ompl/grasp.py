@@ -28,7 +28,7 @@ across its axis.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -336,7 +336,16 @@ class HandCloser:
         moved = hand + direction * active * step
         return np.where(direction > 0, np.minimum(moved, target), np.maximum(moved, target))
 
-    def _bisect(self, hand, target, direction, active, step, moving, at):  # type: ignore[no-untyped-def]
+    def _bisect(
+        self,
+        hand: np.ndarray,
+        target: np.ndarray,
+        direction: np.ndarray,
+        active: np.ndarray,
+        step: float,
+        moving: list[_Finger],
+        at: Callable[[np.ndarray], np.ndarray],
+    ) -> np.ndarray:
         """The step in ``(0, step)`` after which the nearest finger is within
         ``tolerance`` of a surface and none is inside one."""
         low, high = 0.0, step
