@@ -82,6 +82,33 @@ def test_fingers_stop_at_the_cylinder_surface(fixture: str, request: pytest.Fixt
     assert world.in_collision(robot.full_q(q[robot.arm_idx], pushed))
 
 
+@pytest.mark.parametrize("kind", ["box", "sphere"])
+def test_fingers_stop_on_a_box_and_a_sphere(
+    kind: str, sdh_grasp: tuple[oo.Problem, np.ndarray]
+) -> None:
+    """The SDH closing on a box or a sphere where the can was: every contact point lies on
+    the shape's analytic surface, its finger within 0.5 mm of it, and the grasp holds."""
+    problem, q = sdh_grasp
+    assert problem.object is not None
+    pose = problem.object.pose
+    if kind == "box":
+        shape = oo.Shape("box", "box", pose, size=np.array([0.06, 0.06, 0.16]))
+    else:
+        shape = oo.Shape("ball", "sphere", pose, radius=0.033)
+    result = close_hand(dataclasses.replace(problem, object=shape), q)
+    assert len(result.contacts) >= 3
+    for contact in result.contacts:
+        assert 0.0 < contact.distance <= TOLERANCE
+        local = shape.placement.actInv(contact.point)
+        if kind == "box":
+            assert shape.size is not None
+            ratio = np.abs(local) / (shape.size / 2)
+            assert ratio.max() == pytest.approx(1.0, abs=1e-4)  # on a face
+        else:
+            assert np.linalg.norm(local) == pytest.approx(0.033, abs=1e-5)
+    assert force_closure(result.points, result.normals)
+
+
 @pytest.mark.parametrize("fixture", ["panda_grasp", "sdh_grasp"])
 def test_fingers_close_fully_without_the_object(
     fixture: str, request: pytest.FixtureRequest
