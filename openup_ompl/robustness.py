@@ -53,6 +53,7 @@ __all__ = [
     "MAX_DELTA",
     "RobustnessOptions",
     "RobustnessResult",
+    "check_scene",
     "default_robustness_scene",
     "displaced",
     "execute",

@@ -17,6 +17,7 @@ from openup_ompl.exceptions import ConfigError, InvalidProblem
 from openup_ompl.robustness import (
     CSV_COLUMNS,
     RobustnessOptions,
+    check_scene,
     default_robustness_scene,
     displaced,
     make_tasks,
@@ -95,6 +96,15 @@ def test_rerun_reuses_every_shard(small_sweep, tmp_path: Path) -> None:  # type:
     keys = {t.key for t in make_tasks(default_robustness_scene(), SMALL)}
     other = RobustnessOptions(us=SMALL.us, deltas=(0.0, 0.01), seeds=2)
     assert keys.isdisjoint(t.key for t in make_tasks(default_robustness_scene(), other))
+
+
+def test_open_c_scene_of_the_readme_loads() -> None:
+    """The README's scene with c opened to c + 0.3 (w - c) loads for the experiment."""
+    path = Path(__file__).resolve().parent.parent / "benchmarks" / "robustness"
+    problem = check_scene(path / "lwa3_sdh_can_open_c.toml")
+    spec = problem.robot.spec
+    expected = problem.robot.expand_hand(spec.c + 0.3 * (spec.w - spec.c))
+    np.testing.assert_allclose(problem.hand_law.c, expected, atol=1e-4)
 
 
 def test_perturbations_and_displacement() -> None:
