@@ -30,14 +30,15 @@ _ManagerPool: Any = pin.BroadPhaseManagerPool_DynamicAABBTreeCollisionManager
 
 
 def _without_warm_start(geometry_data: pin.GeometryData) -> pin.GeometryData:
-    """Turn off GJK's cached initial guess in every collision request.
+    """Turn off GJK's cached initial guess in every collision and distance request.
 
     With it on (Pinocchio's default), a query's answer can depend on the queries before
-    it: our benchmark saw a 1.3 mm penetration reported free. The cost is about 4 %.
+    it: our benchmark saw a 1.3 mm penetration reported free, and the same distance
+    query asked twice differed by 0.6 um. The cost is about 4 %.
     """
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)
-        for request in geometry_data.collisionRequests:
+        for request in [*geometry_data.collisionRequests, *geometry_data.distanceRequests]:
             request.enable_cached_gjk_guess = False
             request.gjk_initial_guess = coal.GJKInitialGuess.DefaultGuess
     return geometry_data
