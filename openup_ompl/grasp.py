@@ -67,7 +67,7 @@ class ClosingOptions:
             (and never inside it).
         min_step: Smallest step, as a fraction of each joint's range: sliding contacts,
             for which conservative advancement alone would crawl, still converge.
-        max_steps: Steps at most (a step is one round of distance queries).
+        max_steps: Rounds of distance queries at most (bisection rounds included).
     """
 
     tolerance: float = 0.5e-3  # [m]
@@ -232,9 +232,11 @@ class HandCloser:
             self._fingers.append(finger)
         self._data = model.createData()
         self._geometry_data = _without_warm_start(self.geometry_model.createData())
+        self._rounds = 0  # distance-query rounds of the current closing
 
     def _distances(self, q: np.ndarray, fingers: list[_Finger]) -> np.ndarray:
         """Signed distance [m] of each finger to each shape, ``(len(fingers), shapes)``."""
+        self._rounds += 1
         robot = self.problem.robot
         pin.updateGeometryPlacements(
             robot.model, self._data, self.geometry_model, self._geometry_data, q
@@ -277,42 +279,44 @@ class HandCloser:
         direction = np.sign(target - hand) * self._speed  # per unit of progress
         active = direction != 0
         touching: dict[tuple[int, int], Contact] = {}
-        moving = list(self._fingers)
+        moving = [f for f in self._fingers if active[f.movers].any()]
 
         def at(values: np.ndarray) -> np.ndarray:
             q[robot.hand_idx] = robot.expand_hand(values)
             return q
 
-        steps = 0
-        while steps < self.options.max_steps:
-            moving = [f for f in moving if active[f.movers].any()]
-            if not moving:
-                break
-            distances = self._distances(at(hand), moving)
-            steps += 1
+        self._rounds = 0
+        # Distances at the current hand, one row per moving finger; Coal's results of the
+        # last query are those of this hand, so contacts are read from them.
+        distances = self._distances(at(hand), moving)
+        while moving and self._rounds < self.options.max_steps:
             hit = distances <= tolerance
-            for i, s in zip(*np.nonzero(hit), strict=True):
-                touching[(moving[i].geometry, int(s))] = self._contact(moving[i], int(s))
-                active[moving[i].movers] = False
             if hit.any():
-                continue
-            remaining = np.abs(target - hand) / self._speed
-            room = float(remaining[active].min())
-            rates = np.array(
-                [np.sum(f.rates * active[f.movers] * self._speed[f.movers]) for f in moving]
-            )
-            clearance = distances.min(axis=1)
-            step = max(float(np.min(clearance / np.maximum(rates, 1e-12))), self.options.min_step)
-            step = min(step, room)
-            proposal = self._advance(hand, target, direction, active, step)
-            new_distances = self._distances(at(proposal), moving)
-            steps += 1
-            if (new_distances <= 0).any():
-                proposal = self._bisect(hand, target, direction, active, step, moving, at)
-                steps += 1
-            hand = proposal
-            done = active & np.isclose(hand, target, rtol=0, atol=1e-12)
-            active &= ~done
+                for i, s in zip(*np.nonzero(hit), strict=True):
+                    touching[(moving[i].geometry, int(s))] = self._contact(moving[i], int(s))
+                    active[moving[i].movers] = False
+            else:
+                remaining = np.abs(target - hand) / self._speed
+                room = float(remaining[active].min())
+                rates = np.array(
+                    [np.sum(f.rates * active[f.movers] * self._speed[f.movers]) for f in moving]
+                )
+                clearance = distances.min(axis=1)
+                step = max(
+                    float(np.min(clearance / np.maximum(rates, 1e-12))), self.options.min_step
+                )
+                step = min(step, room)
+                proposal = self._advance(hand, target, direction, active, step)
+                distances = self._distances(at(proposal), moving)
+                if (distances <= 0).any():
+                    proposal, distances = self._bisect(
+                        hand, target, direction, active, step, moving, at
+                    )
+                hand = proposal
+                active &= ~np.isclose(hand, target, rtol=0, atol=1e-12)
+            keep = [i for i, f in enumerate(moving) if active[f.movers].any()]
+            moving = [moving[i] for i in keep]
+            distances = distances[keep]
         at(hand)
         return GraspResult(
             q=q.copy(),
@@ -326,7 +330,7 @@ class HandCloser:
                 )
                 if moves and abs(value - goal) <= 1e-9
             ),
-            steps=steps,
+            steps=self._rounds,
         )
 
     @staticmethod
@@ -345,22 +349,26 @@ class HandCloser:
         step: float,
         moving: list[_Finger],
         at: Callable[[np.ndarray], np.ndarray],
-    ) -> np.ndarray:
+    ) -> tuple[np.ndarray, np.ndarray]:
         """The step in ``(0, step)`` after which the nearest finger is within
-        ``tolerance`` of a surface and none is inside one."""
+        ``tolerance`` of a surface and none is inside one: the hand there and its
+        distances, Coal's last query being the one at that hand."""
         low, high = 0.0, step
-        best = hand
+        best, best_distances, last_is_best = hand, None, False
         for _ in range(60):
             middle = 0.5 * (low + high)
             proposal = self._advance(hand, target, direction, active, middle)
             distances = self._distances(at(proposal), moving)
             if (distances <= 0).any():
                 high = middle
+                last_is_best = False
             else:
-                low, best = middle, proposal
+                low, best, best_distances, last_is_best = middle, proposal, distances, True
                 if (distances <= self.options.tolerance).any():
                     break
-        return best
+        if not last_is_best or best_distances is None:
+            best_distances = self._distances(at(best), moving)
+        return best, best_distances
 
 
 def close_hand(
