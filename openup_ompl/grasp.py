@@ -28,6 +28,7 @@ across its axis.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -41,10 +42,12 @@ from openup_ompl.scene import Problem, Shape
 
 __all__ = [
     "DEFAULT_FRICTION",
+    "MAX_TORSION",
     "ClosingOptions",
     "Contact",
     "GraspResult",
     "HandCloser",
+    "check_torsion",
     "close_hand",
     "closed_configuration",
     "contact_wrenches",
@@ -56,6 +59,8 @@ __all__ = [
 
 #: Coulomb friction coefficient of the grasp test (rubber-coated fingertips on a can).
 DEFAULT_FRICTION = 0.5
+#: Largest soft-finger torsional friction lever [m] accepted, far beyond any finger pad.
+MAX_TORSION = 0.1
 
 
 @dataclass(frozen=True)
@@ -392,6 +397,28 @@ def _as_contacts(points: object, normals: object, where: str) -> tuple[np.ndarra
     return p, n / length[:, None]
 
 
+def _tangents(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors completing each unit row of ``n`` ``(K, 3)`` to a right-handed
+    orthonormal basis."""
+    helper = np.where(np.abs(n[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    t1 = np.cross(n, helper)
+    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+    return t1, np.cross(n, t1)
+
+
+def check_torsion(torsion: float) -> float:
+    """``torsion`` if it is a soft-finger torsional friction lever in [0, MAX_TORSION] m.
+
+    Raises:
+        ConfigError: Otherwise.
+    """
+    if not (math.isfinite(torsion) and 0 <= torsion <= MAX_TORSION):
+        raise ConfigError(
+            "torsion", torsion, f"a torsional friction lever in [0, {MAX_TORSION:g}] m"
+        )
+    return float(torsion)
+
+
 def positively_spans(vectors: np.ndarray) -> bool:
     """Whether the columns of ``vectors`` ``(m, K)`` positively span R^m.
 
@@ -446,10 +473,7 @@ def contact_wrenches(
     origin = p.mean(axis=0) if center is None else np.asarray(center, dtype=float)
     arms = p - origin
     scale = max(float(np.linalg.norm(arms, axis=1).mean()), 1e-9)
-    helper = np.where(np.abs(n[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
-    t1 = np.cross(n, helper)
-    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
-    t2 = np.cross(n, t1)
+    t1, t2 = _tangents(n)
     angles = 2 * np.pi * np.arange(edges) / edges
     forces = (
         n[:, None, :]
@@ -457,9 +481,7 @@ def contact_wrenches(
         + friction * np.sin(angles)[None, :, None] * t2[:, None, :]
     ).reshape(-1, 3)
     torques = np.cross(np.repeat(arms, edges, axis=0), forces) / scale
-    if not (np.isfinite(torsion) and 0 <= torsion <= 0.1):
-        raise ConfigError("torsion", torsion, "a torsional friction lever in [0, 0.1] m")
-    if torsion > 0:
+    if check_torsion(torsion) > 0:
         centre = np.cross(arms, n) / scale
         twist = torsion * n / scale
         forces = np.concatenate([forces, n, n])
@@ -525,10 +547,7 @@ def enclosed(normals: object, axis: Sequence[float] | np.ndarray | None = None) 
         axis = np.linalg.svd(n)[2][-1]
     a = np.asarray(axis, dtype=float)
     a = a / np.linalg.norm(a)
-    helper = np.array([1.0, 0.0, 0.0]) if abs(a[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    e1 = np.cross(a, helper)
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(a, e1)
-    planar = np.stack([n @ e1, n @ e2])
+    e1, e2 = _tangents(a[None, :])
+    planar = np.stack([n @ e1[0], n @ e2[0]])
     keep = np.linalg.norm(planar, axis=0) > 1e-6
     return positively_spans(planar[:, keep])

@@ -160,10 +160,10 @@ class RobustnessOptions:
             raise ConfigError("time", self.time_limit, "a positive number of seconds")
         if not (math.isfinite(self.friction) and self.friction >= 0):
             raise ConfigError("friction", self.friction, "a coefficient >= 0")
-        if self.torsion is not None and not (
-            math.isfinite(self.torsion) and 0 <= self.torsion <= 0.1
-        ):
-            raise ConfigError("torsion", self.torsion, "a torsional friction lever in [0, 0.1] m")
+        if self.torsion is not None:
+            from openup_ompl.grasp import check_torsion
+
+            check_torsion(self.torsion)
 
 
 def perturbations(
