@@ -386,14 +386,14 @@ def _magnitude(row: dict[str, Any]) -> float:
 
 
 def _grouped(rows: Sequence[dict[str, Any]], by_direction: bool) -> dict[Any, list[int]]:
-    """``(u, direction or "all", |delta|) -> [successes, trials]`` (yaws pooled)."""
+    """``(u, direction or "all", |delta|) -> [successes, trials]`` (yaws pooled; the zero
+    error's direction is ``"none"``)."""
     table: dict[Any, list[int]] = {}
     for row in rows:
         direction = _direction(row) if by_direction else "all"
-        for name in {direction, "all"} if by_direction and direction == "none" else {direction}:
-            cell = table.setdefault((row["u"], name, _magnitude(row)), [0, 0])
-            cell[0] += row["successes"]
-            cell[1] += row["trials"]
+        cell = table.setdefault((row["u"], direction, _magnitude(row)), [0, 0])
+        cell[0] += row["successes"]
+        cell[1] += row["trials"]
     return table
 
 
