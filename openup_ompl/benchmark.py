@@ -316,7 +316,7 @@ def plot_results(rows: Sequence[dict[str, Any]], out: Path) -> list[Path]:
     Raises:
         MissingExtra: matplotlib is not installed.
     """
-    from openup_ompl.figures import _pyplot
+    from openup_ompl.figures import _pyplot, _save
 
     plt = _pyplot()
     problems = sorted({r["problem"] for r in rows})
@@ -349,10 +349,7 @@ def plot_results(rows: Sequence[dict[str, Any]], out: Path) -> list[Path]:
         ax.set_ylabel(ylabel)
         ax.legend(fontsize="small")
         fig.tight_layout()
-        path = Path(out) / name
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
-        written.append(path)
+        written.append(_save(fig, Path(out) / name, 120))
     return written
 
 

@@ -125,9 +125,14 @@ def _joint_label(names: Sequence[str], group: list[int]) -> str:
 
 
 def _save(fig: Any, out: str | Path, dpi: int) -> Path:
+    """Write ``fig`` to the PNG ``out`` (creating its directory) and close it, written or
+    not."""
     out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=dpi)
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(out, dpi=dpi)
+    finally:
+        _pyplot().close(fig)
     return out
 
 
@@ -228,10 +233,7 @@ def plot_hand_law(
     )
     axes[0, 1].set_title(f"{scene.data.get('planner', 'plan')}: the hand along the reach")
     fig.tight_layout()
-    try:
-        return _save(fig, out, dpi)
-    finally:
-        plt.close(fig)
+    return _save(fig, out, dpi)
 
 
 def plot_law(
@@ -300,7 +302,4 @@ def plot_law(
     variant += ", open arrival" if law.open_arrival else ""
     axes[0, 0].set_title(title or f"hand law (Algorithm 3), mga = {law.mga:g}{variant}")
     fig.tight_layout()
-    try:
-        return _save(fig, out, dpi)
-    finally:
-        plt.close(fig)
+    return _save(fig, out, dpi)

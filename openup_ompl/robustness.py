@@ -442,7 +442,7 @@ def write_csv(rows: Sequence[dict[str, Any]], path: Path) -> Path:
 def plot_robustness(rows: Sequence[dict[str, Any]], path: Path, title: str = "") -> Path:
     """Success rate against the error magnitude, one line per ``u``: all directions
     pooled, then one panel per direction."""
-    from openup_ompl.figures import _pyplot
+    from openup_ompl.figures import _pyplot, _save
 
     plt = _pyplot()
     us = sorted({row["u"] for row in rows})
@@ -473,9 +473,7 @@ def plot_robustness(rows: Sequence[dict[str, Any]], path: Path, title: str = "")
     if title:
         figure.suptitle(title)
     figure.tight_layout()
-    figure.savefig(path, dpi=120)
-    plt.close(figure)
-    return path
+    return _save(figure, path, 120)
 
 
 @dataclass(frozen=True)

@@ -67,7 +67,7 @@ def write_grasp_figure(
     Raises:
         MissingExtra: matplotlib is not installed.
     """
-    from openup_ompl.figures import _pyplot
+    from openup_ompl.figures import _pyplot, _save
     from openup_ompl.robustness import displaced, execute
 
     plt = _pyplot()
@@ -110,10 +110,4 @@ def write_grasp_figure(
         layers = [*environment, (_triangles(arm), ARM_COLOR), (_triangles(closed), colour)]
         _draw(bottom, layers, low, high, direction, strict=True)
         bottom.set_title(_outcome(trial), fontsize=10, pad=0, color=colour)
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    try:
-        fig.savefig(out, dpi=options.dpi)
-    finally:
-        plt.close(fig)
-    return out
+    return _save(fig, out, options.dpi)

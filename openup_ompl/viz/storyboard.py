@@ -252,7 +252,7 @@ def write_storyboard(
     Returns:
         The PNG's path.
     """
-    from openup_ompl.figures import _pyplot
+    from openup_ompl.figures import _pyplot, _save
 
     plt = _pyplot()
     options = options or StoryboardOptions()
@@ -317,10 +317,4 @@ def write_storyboard(
             fontsize=10.5,
             y=-0.1,
         )
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    try:
-        fig.savefig(out, dpi=options.dpi)
-    finally:
-        plt.close(fig)
-    return out
+    return _save(fig, out, options.dpi)
