@@ -86,7 +86,7 @@ def write_grasp_figure(
         fontsize=13,
         y=0.99,
     )
-    _, open_hand = robot.meshes_at(last, fine=True)
+    arm, open_hand = robot.meshes_at(last, fine=True)
     points = _triangles(open_hand).reshape(-1, 3)
     middle = (points.min(axis=0) + points.max(axis=0)) / 2
     half = float(np.max(points.max(axis=0) - points.min(axis=0))) / 2 * 1.45
@@ -99,7 +99,6 @@ def write_grasp_figure(
         shapes = [s for s in scene.shapes if s.name != scene.object_name] + [true.object]
         moved = dataclasses.replace(scene, shapes=shapes)
         environment = _environment(moved, low, high)
-        arm, _ = robot.meshes_at(last, fine=True)
         top = fig.add_subplot(grid[0, column], projection="3d")
         layers = [*environment, (_triangles(arm), ARM_COLOR), (_triangles(open_hand), HAND_COLOR)]
         _draw(top, layers, low, high, direction, strict=True)
