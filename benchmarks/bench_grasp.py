@@ -4,9 +4,10 @@ For each robot's demo scene, the hand is closed from collision-free IK solutions
 grasp pose (the hand at the law's grasp opening), with the object at its nominal pose
 and displaced by 1 cm along +y: reported per robot are the median time of one closing
 [ms], its rounds of distance queries, the finger-object distance at the stops (it must
-not exceed the 0.5 mm tolerance) and the median time of one force-closure linear
-program. The time of one closing is compared, in the same run, with one
-``pin.computeDistances`` over the same geometry model (every finger-shape pair at once).
+not exceed the 0.5 mm tolerance), how many grasps are in force closure (with the robot
+file's ``[hand].torsion``) and the median time of one force-closure linear program.
+The time of one closing is compared, in the same run, with one ``pin.computeDistances``
+over the same geometry model (every finger-shape pair at once).
 
 Run (about 20 s)::
 
@@ -55,7 +56,9 @@ def measure(scene: str, solutions: int, repeats: int) -> dict[str, object]:
             gaps += [c.distance for c in result.contacts]
             if result.contacts:
                 started = time.perf_counter()
-                closures.append(force_closure(result.points, result.normals))
+                closures.append(
+                    force_closure(result.points, result.normals, torsion=problem.robot.spec.torsion)
+                )
                 lp_times.append(time.perf_counter() - started)
     model, geometry_model = problem.robot.model, closer.geometry_model
     data, geometry_data = model.createData(), geometry_model.createData()
