@@ -13,11 +13,16 @@ the reference's time on the same seed), and means over successful runs of waypoi
 joint-space path length (sum of the norms of the steps of ``plan.arm_path``), and
 ``plan.stats`` (state checks, IK calls).
 
+The planner name ``ikbirrt-plain`` is IKBiRRT without the goal tree's retreat
+(``IKBiRRTOptions(retreat=0)``), to measure what the retreat buys side by side.
+
 Run (about 20 s on 2 idle cores; at worst seeds x variants x time limit)::
 
     python benchmarks/bench_planning.py
     python benchmarks/bench_planning.py --seeds 20 --time-limit 5 \
         --planners ikbirrt rrtconnect --fixed-hand w --json bench_planning.json
+    python benchmarks/bench_planning.py --scene benchmarks/problems/panda/shelf_small.toml \
+        --planners ikbirrt ikbirrt-plain --seeds 10
 """
 
 from __future__ import annotations
@@ -37,6 +42,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import _common  # noqa: E402
 
 import openup_ompl  # noqa: E402
+
+#: Bench-only planner name: IKBiRRT without the goal tree's retreat.
+PLAIN = "ikbirrt-plain"
 
 
 def build_setups(
@@ -72,8 +80,12 @@ def run_once(
     checks_before = setup.checker.states_checked
     ik_before = setup.ik.calls
     started = time.perf_counter()
+    instance: str | openup_ompl.IKBiRRT = planner
+    if planner == PLAIN:
+        options = openup_ompl.IKBiRRTOptions(retreat=0.0)
+        instance = openup_ompl.IKBiRRT(setup.space_information, options)
     try:
-        plan = setup.solve(time_limit=time_limit, planner=planner, seed=seed)
+        plan = setup.solve(time_limit=time_limit, planner=instance, seed=seed)
     except openup_ompl.PlanningFailed as error:
         return {
             "success": False,
@@ -133,7 +145,7 @@ def main() -> None:
         "--planners",
         nargs="+",
         default=["ikbirrt", "rrtconnect"],
-        help=f"planner names, from {list(openup_ompl.PLANNERS)}",
+        help=f"planner names, from {list(openup_ompl.PLANNERS)} and {PLAIN}",
     )
     parser.add_argument("--seeds", type=int, default=20, help="seeds per variant (default 20)")
     parser.add_argument("--first-seed", type=int, default=0, help="first seed (default 0)")
@@ -160,7 +172,7 @@ def main() -> None:
     args = parser.parse_args()
     if args.seeds < 1 or not args.time_limit > 0:
         parser.error("--seeds must be >= 1 and --time-limit > 0")
-    unknown = [p for p in args.planners if p.lower() not in openup_ompl.PLANNERS]
+    unknown = [p for p in args.planners if p.lower() not in (*openup_ompl.PLANNERS, PLAIN)]
     if unknown:
         parser.error(f"unknown planners {unknown}: expected some of {list(openup_ompl.PLANNERS)}")
     fixed_hand = None if args.fixed_hand.lower() == "none" else args.fixed_hand

@@ -94,8 +94,10 @@ class IKSolver:
         err = pin.log6(placement.actInv(self.target)).vector
         return float(np.linalg.norm(err[:3])), float(np.linalg.norm(err[3:]))
 
-    def refine(self, arm: np.ndarray) -> np.ndarray | None:
-        """Run damped least squares from ``arm``; the solution, or ``None`` if it stalls."""
+    def refine(self, arm: np.ndarray, target: pin.SE3 | None = None) -> np.ndarray | None:
+        """Run damped least squares from ``arm`` towards ``target`` (default: the
+        solver's :attr:`target`); the solution, or ``None`` if it stalls."""
+        target = self.target if target is None else target
         options = self.options
         model, data, q = self._model, self._data, self._q
         arm_idx, v_idx = self.robot.arm_idx, self.robot.arm_v_idx
@@ -108,7 +110,7 @@ class IKSolver:
             q[arm_idx] = x
             pin.forwardKinematics(model, data, q)
             placement = pin.updateFramePlacement(model, data, self._frame)
-            error_placement = placement.actInv(self.target)
+            error_placement = placement.actInv(target)
             err = pin.log6(error_placement).vector
             if (
                 err[0] ** 2 + err[1] ** 2 + err[2] ** 2 < options.position_tolerance**2
@@ -125,6 +127,15 @@ class IKSolver:
             step = -jacobian.T @ np.linalg.solve(jacobian @ jacobian.T + self._damping_eye, err)
             x = np.clip(x + options.step * step, self._lower, self._upper)
         return None
+
+    def palm_step(self, arm: np.ndarray, offset: np.ndarray) -> np.ndarray | None:
+        """The arm configuration that moves the palm by ``offset`` [m, in the palm frame]
+        with its orientation held: :meth:`refine` from ``arm`` towards the moved palm
+        pose, or ``None`` where it stalls (for steps of centimetres it converges in a
+        few iterations)."""
+        self._q[self.robot.arm_idx] = arm
+        placement = self.robot.palm_placement(self._data, self._q)
+        return self.refine(arm, placement * pin.SE3(np.eye(3), np.asarray(offset, dtype=float)))
 
     def solve(
         self, rng: np.random.Generator, seed_arm: np.ndarray | None = None

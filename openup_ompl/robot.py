@@ -141,6 +141,10 @@ class RobotSpec:
         urdf: Resolved URDF path.
         srdf: Resolved SRDF path, or ``None`` (no self-collision pruning).
         palm_frame: Frame whose world pose is the grasp pose.
+        approach: Unit vector, in the palm frame, of the direction the palm moves in
+            to reach the grasp (towards the object); IKBiRRT's goal tree retreats
+            against it (:attr:`~openup_ompl.planners.ikbirrt.IKBiRRTOptions.retreat`).
+            Default: the palm frame's ``z`` axis.
         arm_joints: OMPL's state space, in this order.
         hand_joints: Joints set by the hand law, in the order of ``c``, ``b``, ``w``.
         home: Arm configuration [rad] used when a scene gives no start.
@@ -185,6 +189,7 @@ class RobotSpec:
     closed: np.ndarray | None = None
     closing_speed: np.ndarray | None = None
     torsion: float = 0.0
+    approach: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
 
     @classmethod
     def from_file(cls, path: Path) -> RobotSpec:
@@ -201,8 +206,8 @@ class RobotSpec:
             raise ConfigError(f"{where}: hand", table, "a [hand] table")
         n = len(hand)
         known = {
-            "name", "description", "urdf", "srdf", "palm_frame", "arm_joints", "hand_joints",
-            "home", "convex", "padding", "hand", "mount", "mimic",
+            "name", "description", "urdf", "srdf", "palm_frame", "approach", "arm_joints",
+            "hand_joints", "home", "convex", "padding", "hand", "mount", "mimic",
         }  # fmt: skip
         unknown = sorted(set(raw) - known)
         if unknown:
@@ -226,6 +231,7 @@ class RobotSpec:
             palm_frame=_toml.string(
                 _toml.require(raw, "palm_frame", where), f"{where}: palm_frame"
             ),
+            approach=_unit_vector(raw.get("approach", [0.0, 0.0, 1.0]), f"{where}: approach"),
             arm_joints=tuple(arm),
             hand_joints=tuple(hand),
             home=_toml.vector(_toml.require(raw, "home", where), f"{where}: home", len(arm)),
@@ -260,6 +266,14 @@ class RobotSpec:
                 table.get("torsion", 0.0), f"{where}: hand.torsion", low=0.0, high=0.1
             ),
         )
+
+
+def _unit_vector(raw: Any, where: str) -> np.ndarray:
+    vector = _toml.vector(raw, where, 3)
+    norm = float(np.linalg.norm(vector))
+    if not norm > 1e-9:
+        raise ConfigError(where, vector.tolist(), "a non-zero 3-vector (the palm's approach)")
+    return vector / norm
 
 
 def _closing_speed(raw: Any, where: str, n: int) -> np.ndarray:

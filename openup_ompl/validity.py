@@ -139,8 +139,9 @@ class CoupledChecker:
         self._fill(context, arm)
         return context.q.copy()
 
-    def _fill(self, context: ThreadContext, arm: object) -> None:
-        """Write arm (any sequence of floats) and law-driven hand into ``context.q``.
+    def _fill(self, context: ThreadContext, arm: object) -> float:
+        """Write arm (any sequence of floats) and law-driven hand into ``context.q``;
+        return ``d`` (``inf`` for a fixed hand, which needs none).
 
         This is the hot path of every check: it allocates no array and makes as few
         Python-level calls as the law allows (measured in ``benchmarks/bench_validity.py``).
@@ -150,7 +151,7 @@ class CoupledChecker:
         law = self.law
         if law.fixed_clipped is not None:
             q[self._hand_sel] = law.fixed_clipped
-            return
+            return math.inf
         d = self._palm_distance(context.data, q)
         if d > law.mga:
             q[self._hand_sel] = law.high
@@ -161,16 +162,22 @@ class CoupledChecker:
             if law.clip_low:
                 np.clip(hand, law.lower, law.upper, out=hand)
             q[self._hand_sel] = hand
+        return d
 
     def is_valid(self, arm: object) -> bool:
         """Whether the arm configuration, hand set by the law, is collision-free (with
         the finest margin, ``paddings[-1]``)."""
+        return self._check_state(arm)[0]
+
+    def _check_state(self, arm: object) -> tuple[bool, float]:
+        """:meth:`is_valid`, and ``d`` there (``inf`` for a fixed hand)."""
         self.states_checked += 1
         context = self.finest_world.context()
-        self._fill(context, arm)
-        return not pin.computeCollisions(
+        d = self._fill(context, arm)
+        free = not pin.computeCollisions(
             self._model, context.data, context.manager, context.q, True
         )
+        return free, d
 
     def is_valid_with_hand(self, arm: np.ndarray, hand: np.ndarray) -> bool:
         """Whether the arm configuration with the given hand is collision-free."""
@@ -178,18 +185,22 @@ class CoupledChecker:
         return not self.finest_world.in_collision(self.robot.full_q(arm, hand))
 
     # -- motions --------------------------------------------------------------------------
-    def weights(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    def weights(
+        self, a: np.ndarray, b: np.ndarray, ends: tuple[float, float] | None = None
+    ) -> np.ndarray:
         """Weights of the displacement bound for the motion ``a -> b``: without the
         fingers' term where ``d`` provably stays above ``mga`` all along (the hand is then
         on the law's plateau and does not move), else :attr:`motion_weights`.
 
         Along the motion ``d >= (d(a) + d(b) - rates . |b - a|) / 2``, from the Lipschitz
-        bound of ``d`` (:attr:`distance_rates`) at both ends.
+        bound of ``d`` (:attr:`distance_rates`) at both ends; ``ends`` gives
+        ``(d(a), d(b))`` when they are known.
         """
         if self.law.fixed is not None:
             return self.motion_weights
+        da, db = (self.distance(a), self.distance(b)) if ends is None else ends
         spread = float(self.distance_rates @ np.abs(b - a))
-        if 0.5 * (self.distance(a) + self.distance(b) - spread) > self.law.mga:
+        if 0.5 * (da + db - spread) > self.law.mga:
             return self.plateau_weights
         return self.motion_weights
 
@@ -224,11 +235,50 @@ class CoupledChecker:
     def full_qs(self, arms: np.ndarray) -> np.ndarray:
         """Full configurations, hand from the law, for arm states ``(n, dof)``: ``(nq, n)``."""
         arms = np.atleast_2d(arms)
+        qs = self._arm_qs(arms)
+        if self.law.fixed is None:
+            steps = self.distance_rates @ np.abs(np.diff(arms, axis=0)).T
+            d = self._law_distances(qs, np.concatenate([[0.0], np.cumsum(steps)]))
+        else:
+            d = np.zeros(arms.shape[0])
+        self._set_hands(qs, d)
+        return qs
+
+    def _motion_qs(
+        self,
+        a: np.ndarray,
+        b: np.ndarray,
+        spacing: float,
+        weights: np.ndarray,
+        ends: tuple[float, float],
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The states of the motion ``a -> b`` at ``spacing`` [m] in the bound of
+        ``weights``, ``a`` and ``b`` included, and their full configurations: ``(n, dof)``
+        and ``(nq, n)``. ``ends`` are ``d(a)`` and ``d(b)``."""
+        n = self.segment_count(a, b, spacing, weights)
+        arms = a + (np.arange(n + 1, dtype=float) / n)[:, None] * (b - a)
+        qs = self._arm_qs(arms)
+        fixed = self.law.fixed_clipped
+        if fixed is None:
+            step = float(self.distance_rates @ np.abs(b - a)) / n
+            self._set_hands(qs, self._law_distances(qs, step * np.arange(n + 1), ends))
+        else:
+            qs[self._hand_sel, :] = fixed[:, None]
+        return arms, qs
+
+    def _set_hands(self, qs: np.ndarray, d: np.ndarray) -> None:
+        """Write the law's hands at the distances ``d`` into the columns of ``qs``."""
+        law = self.law
+        if law.fixed is None and not np.any(d <= law.mga):  # all on the plateau
+            qs[self._hand_sel, :] = law.high[:, None]
+        else:
+            qs[self._hand_sel, :] = law.batch(d).T
+
+    def _arm_qs(self, arms: np.ndarray) -> np.ndarray:
+        """``(nq, n)`` configurations with the arm joints of ``arms``, the rest neutral."""
         qs = np.empty((self._model.nq, arms.shape[0]), order="F")
         qs[:] = self.robot.neutral()[:, None]
-        qs[self._arm_idx, :] = arms.T
-        d = np.zeros(arms.shape[0]) if self.law.fixed is not None else self._law_distances(qs)
-        qs[self._hand_idx, :] = self.law.batch(d).T
+        qs[self._arm_sel, :] = arms.T
         return qs
 
     def _palm_distance(self, data: pin.Data, q: np.ndarray) -> float:
@@ -238,41 +288,47 @@ class CoupledChecker:
             return math.dist(placement.translation.tolist(), self._goal) * self._inv_start
         return self.goal_distance(placement)
 
-    def _law_distances(self, qs: np.ndarray) -> np.ndarray:
+    def _law_distances(
+        self, qs: np.ndarray, path: np.ndarray, ends: tuple[float, float] | None = None
+    ) -> np.ndarray:
         """``d`` for the columns of ``qs``, or a value above ``mga`` where the hand is
         certainly on the law's plateau.
 
-        Only ``d <= mga`` changes the hand. Since ``d`` is Lipschitz in the arm joints
-        (:func:`~openup_ompl.motion_bound.distance_rates`), forward kinematics at every
-        :data:`ANCHOR_STRIDE`-th state bounds ``d`` from below at the states between
-        two anchors; those whose bound stays above ``mga`` are settled without forward
-        kinematics, the others get their own. Far from the grasp this costs one forward
-        kinematics per stride; near it, one per state, plus one vectorised bound.
+        Only ``d <= mga`` changes the hand. ``d`` is Lipschitz in the arm joints
+        (:func:`~openup_ompl.motion_bound.distance_rates`), so along the states
+        ``|d_i - d_j| <= |path_i - path_j|``, ``path`` being the cumulative
+        ``rates . |q_k - q_(k-1)|``. The two ends (given as ``ends`` or from forward
+        kinematics) bound every state; those whose bound may reach ``mga`` get forward
+        kinematics at every :data:`ANCHOR_STRIDE`-th of them, which bound the states
+        between two anchors; the states still unsettled get their own. Far from the
+        grasp this costs the two ends; near it, one forward kinematics per state.
         """
         n = qs.shape[1]
         data = self.world.context().data
         distance = self._palm_distance
+        mga = self.law.mga
+        d = np.full(n, mga + 1.0)
+        if ends is None:
+            d[0], d[-1] = distance(data, qs[:, 0]), distance(data, qs[:, -1])
+        else:
+            d[0], d[-1] = ends
         if n <= 2:
-            return np.array([distance(data, qs[:, k]) for k in range(n)])
-        anchors = np.arange(0, n + ANCHOR_STRIDE - 1, ANCHOR_STRIDE)
-        anchors[-1] = n - 1
-        d = np.empty(n)
-        for k in anchors.tolist():
-            d[k] = distance(data, qs[:, k])
-        arms = qs[self._arm_idx, :]
-        segment = np.arange(n) // ANCHOR_STRIDE
-        left = anchors[np.minimum(segment, anchors.size - 1)]
-        right = anchors[np.minimum(segment + 1, anchors.size - 1)]
-        rates = self.distance_rates
-        bound = np.maximum(
-            d[left] - rates @ np.abs(arms - arms[:, left]),
-            d[right] - rates @ np.abs(arms - arms[:, right]),
-        )
-        between = np.ones(n, dtype=bool)
-        between[anchors] = False
-        settled = between & (bound > self.law.mga)
-        d[settled] = self.law.mga + 1.0
-        for k in np.flatnonzero(between & ~settled).tolist():
+            return d
+        bound = np.maximum(d[0] - path, d[-1] - (path[-1] - path))
+        need = np.flatnonzero(bound[1:-1] <= mga) + 1
+        if need.size > ANCHOR_STRIDE:
+            anchors = need[::ANCHOR_STRIDE]
+            for k in anchors.tolist():
+                d[k] = distance(data, qs[:, k])
+            known = np.concatenate([[0], anchors, [n - 1]])
+            rest = need[np.arange(need.size) % ANCHOR_STRIDE != 0]
+            right = np.searchsorted(known, rest)
+            left, right = known[right - 1], known[right]
+            bound = np.maximum(
+                d[left] - (path[rest] - path[left]), d[right] - (path[right] - path[rest])
+            )
+            need = rest[bound <= mga]
+        for k in need.tolist():
             d[k] = distance(data, qs[:, k])
         return d
 
@@ -292,14 +348,13 @@ class CoupledChecker:
         if self.world.num_threads == 1:
             return self.check_motion_serial(a, b)
         self.motions_checked += 1
-        if not self.is_valid(b):
+        free, db = self._check_state(b)
+        if not free:
             return False
-        weights = self.weights(a, b)
+        ends = (math.inf, math.inf) if self.law.fixed is not None else (self.distance(a), db)
+        weights = self.weights(a, b, ends)
         if self._coarse:
-            arms = np.concatenate(
-                [a[None, :], self.interpolate(a, b, self.coarse_resolution, weights)]
-            )
-            qs = self.full_qs(arms)
+            arms, qs = self._motion_qs(a, b, self.coarse_resolution, weights, ends)
             self.states_checked += arms.shape[0]
             if not np.any(self._worlds[0].batch_in_collision(qs)):
                 return self._certify(
@@ -308,8 +363,7 @@ class CoupledChecker:
             if np.any(self.finest_world.batch_in_collision(qs)):
                 return False
         base = self._coarse
-        arms = np.concatenate([a[None, :], self.interpolate(a, b, weights=weights)])
-        qs = self.full_qs(arms)
+        arms, qs = self._motion_qs(a, b, self.resolution, weights, ends)
         self.states_checked += arms.shape[0]
         if not np.any(self._worlds[base].batch_in_collision(qs)):
             return self._certify(arms, np.full(arms.shape[0], base), weights, self.resolution)

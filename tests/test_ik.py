@@ -49,3 +49,27 @@ def test_bad_options_are_named(field, value):
     """A bad IK option raises ConfigError naming the option."""
     with pytest.raises(ConfigError, match=field):
         IKOptions(**{field: value})
+
+
+def test_palm_step_translates_the_palm_and_holds_its_orientation(panda):
+    """A palm step moves the palm by the requested offset in its own frame, its
+    orientation held, within the IK tolerances, from most configurations."""
+    solver = IKSolver(panda, pin.SE3.Identity())
+    options = solver.options
+    data = panda.model.createData()
+    rng = np.random.default_rng(5)
+    reached = 0
+    for _ in range(50):
+        arm = rng.uniform(0.6 * panda.arm_lower, 0.6 * panda.arm_upper)
+        offset = rng.normal(size=3)
+        offset *= 0.025 / np.linalg.norm(offset)
+        stepped = solver.palm_step(arm, offset)
+        if stepped is None:
+            continue
+        reached += 1
+        before = panda.palm_placement(data, panda.full_q(arm, np.zeros(2)))
+        after = panda.palm_placement(data, panda.full_q(stepped, np.zeros(2)))
+        moved = before.actInv(after)
+        assert np.linalg.norm(moved.translation - offset) < options.position_tolerance
+        assert np.linalg.norm(pin.log3(moved.rotation)) < options.rotation_tolerance
+    assert reached >= 35

@@ -11,6 +11,7 @@ from ompl import util as ompl_util
 from recheck import assert_plan_rechecks, solved_and_rechecked
 
 import openup_ompl as oo
+from openup_ompl.benchmark import default_problems_dir
 
 SCENES = Path(__file__).resolve().parent / "scenes"
 SEEDS = range(20)
@@ -198,3 +199,43 @@ def test_plan_file_follows_contract(default_setup: oo.GraspPlanningSetup, tmp_pa
         == len(data["robot"]["joint_names"])
         == default_setup.problem.robot.model.nq
     )
+
+
+def test_goal_tree_retreats_against_the_approach(tmp_path: Path) -> None:
+    """Each IK root of IKBiRRT's goal tree grows a straight retreat of the palm against
+    the robot's approach axis; on a shelf, where the close hand meets the object from the
+    front only, the retreat cuts the iterations, and plans still re-check."""
+    problem = oo.load_scene(default_problems_dir("panda") / "shelf_small.toml")
+    setup = oo.GraspPlanningSetup(problem)
+    robot = problem.robot
+    data = robot.model.createData()
+    iterations = {}
+    for retreat in (0.1, 0.0):
+        iterations[retreat] = 0
+        for seed in range(4):
+            options = oo.IKBiRRTOptions(retreat=retreat, seed=seed)
+            planner = oo.IKBiRRT(setup.space_information, options)
+            plan = setup.solve(5.0, planner, seed=seed)
+            assert_plan_rechecks(plan, tmp_path / f"retreat{retreat}_{seed}.json")
+            iterations[retreat] += planner.iterations
+            if retreat == 0.0:
+                assert planner.retreat_vertices == 0
+                continue
+            assert 1 <= planner.retreat_vertices <= 4 * planner.goal_roots
+            # The plan ends with the retreat, reversed: the palm slides onto the grasp
+            # along the approach axis, its orientation that of the grasp.
+            grasp = problem.grasp
+            for arm in plan.waypoints[-2:]:
+                palm = robot.palm_placement(data, robot.full_q(arm, setup.law(0.0)))
+                offset = grasp.actInv(palm)
+                along = float(offset.translation @ robot.spec.approach)
+                assert -0.11 < along <= 1e-3
+                assert np.linalg.norm(offset.translation - along * robot.spec.approach) < 0.01
+                assert np.linalg.norm(pin.log3(offset.rotation)) < 0.05
+    assert iterations[0.1] < iterations[0.0] / 2
+
+
+def test_bad_retreat_options_are_named() -> None:
+    for field, value in (("retreat", -0.1), ("retreat", float("nan")), ("retreat_step", 0.0)):
+        with pytest.raises(oo.ConfigError, match=field):
+            oo.IKBiRRTOptions(**{field: value})

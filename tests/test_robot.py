@@ -161,3 +161,18 @@ def test_home_outside_limits_raises_config_error_naming_the_joint(panda_toml, wr
     with pytest.raises(ou.ConfigError, match="panda_joint4") as info:
         ou.load_robot(write_file("bad.toml", text))
     assert info.value.value == 0.5
+
+
+@pytest.mark.parametrize("value", ["[0.0, 0.0, 0.0]", "[1.0, 0.0]", '"z"'])
+def test_bad_approach_raises_config_error_naming_it(panda_toml, write_file, value):
+    """A zero, short or non-numeric approach axis raises ConfigError naming approach."""
+    text = panda_toml.replace("approach = [0.0, 0.0, 1.0]", f"approach = {value}")
+    assert f"approach = {value}" in text
+    with pytest.raises(ou.ConfigError, match="approach"):
+        ou.load_robot(write_file("bad.toml", text))
+
+
+def test_approach_is_normalised(panda_toml, write_file):
+    text = panda_toml.replace("approach = [0.0, 0.0, 1.0]", "approach = [0.0, 3.0, 4.0]")
+    robot = ou.load_robot(write_file("axis.toml", text))
+    np.testing.assert_allclose(robot.spec.approach, [0.0, 0.6, 0.8])

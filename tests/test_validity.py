@@ -92,6 +92,34 @@ def test_motion_bound_covers_every_geometry(robot_setup: oo.GraspPlanningSetup) 
     assert hand_moved >= 50 and plateau >= 50
 
 
+def test_batched_hands_are_the_laws(robot_setup: oo.GraspPlanningSetup) -> None:
+    """The batches of a motion check and of plan rows, whose states skip forward
+    kinematics where the Lipschitz bound of ``d`` keeps them on the plateau, hold at every
+    state the hand the law gives from that state's own ``d``, on motions that cross
+    ``mga`` as well as far from and close to the grasp."""
+    checker = robot_setup.checker
+    robot = robot_setup.problem.robot
+    grasp = robot_setup.goal.solutions[0]
+    rng = np.random.default_rng(7)
+    below = crossed = 0
+    for k in range(60):
+        # At the grasp, leaving it (crossing mga), and anywhere.
+        centre = rng.uniform(robot.arm_lower, robot.arm_upper) if k % 3 == 2 else grasp
+        a = np.clip(centre + rng.normal(0.0, 0.01, grasp.size), robot.arm_lower, robot.arm_upper)
+        b = a + rng.normal(0.0, 0.02 if k % 3 == 0 else 0.4, a.size)
+        b = np.clip(b, robot.arm_lower, robot.arm_upper)
+        ends = (checker.distance(a), checker.distance(b))
+        arms, qs = checker._motion_qs(a, b, checker.resolution, checker.motion_weights, ends)
+        path = np.concatenate([arms, [a], arms[::3]])
+        for batch, states in ((qs, arms), (checker.full_qs(path), path)):
+            expected = np.array([checker.full_q(x) for x in states]).T
+            np.testing.assert_allclose(batch, expected, rtol=0.0, atol=1e-12)
+        d = np.array([checker.distance(x) for x in arms])
+        below += bool(np.all(d <= robot_setup.law.mga))
+        crossed += bool(np.any(d <= robot_setup.law.mga) and np.any(d > robot_setup.law.mga))
+    assert below >= 3 and crossed >= 3
+
+
 def test_hand_rate_bounds_finger_motion(robot_setup: oo.GraspPlanningSetup) -> None:
     """With the arm still, no extreme point of a geometry moves farther than
     ``hand_rate * |d1 - d2|`` when the law moves the fingers from ``d1`` to ``d2``."""

@@ -7,6 +7,14 @@ manifolds", 2009). Both trees grow with the paper's Algorithm 2 (``Extend``): fr
 nearest vertex, step toward the target, add each collision-free step as a vertex, stop at
 the first collision. Every step is checked with the hand set by the law at the checker's
 resolution. The trees swap roles after every iteration.
+
+Each new goal root first grows a straight retreat: the palm backs away from the grasp
+against the robot's approach direction (``approach`` in the robot file) in steps of
+``retreat_step``, up to ``retreat``, each step checked with the law, stopping at the
+first collision. Near the grasp the law's hand is close to ``c``, millimetres from the
+object, so a random extension from a root almost always drives a finger into the object;
+the retreat is the one motion that leaves it (the classical pregrasp-and-approach), and
+the goal tree then grows from its end. ``retreat = 0`` gives the plain IKBiRRT.
 """
 
 from __future__ import annotations
@@ -20,7 +28,7 @@ from ompl import base as ob
 from ompl import geometric as og
 
 from openup_ompl.exceptions import ConfigError
-from openup_ompl.goal import IKGoalRegion
+from openup_ompl.goal import GraspGoal, IKGoalRegion
 
 
 @dataclass(frozen=True)
@@ -33,12 +41,17 @@ class IKBiRRTOptions:
         p_sample_goal: Probability per iteration of sampling a new IK root for the goal
             tree instead of growing the trees.
         goal_restarts: IK restarts per goal-sampling iteration.
+        retreat: Length [m] of the straight palm retreat grown from each new goal root
+            (0: none).
+        retreat_step: Palm displacement [m] of one retreat step (one goal-tree vertex).
         seed: Seed of the planner's random generator (``None``: fresh entropy).
     """
 
     max_step: float = 0.3  # [rad]
     p_sample_goal: float = 0.1
     goal_restarts: int = 1
+    retreat: float = 0.1  # [m]
+    retreat_step: float = 0.025  # [m]
     seed: int | None = None
 
     def __post_init__(self) -> None:
@@ -50,6 +63,12 @@ class IKBiRRTOptions:
             )
         if not (isinstance(self.goal_restarts, int) and self.goal_restarts >= 1):
             raise ConfigError("IKBiRRTOptions.goal_restarts", self.goal_restarts, "an integer >= 1")
+        if not (math.isfinite(self.retreat) and self.retreat >= 0):
+            raise ConfigError("IKBiRRTOptions.retreat", self.retreat, "a distance >= 0 [m]")
+        if not (math.isfinite(self.retreat_step) and self.retreat_step > 0):
+            raise ConfigError(
+                "IKBiRRTOptions.retreat_step", self.retreat_step, "a positive distance [m]"
+            )
 
 
 class _Extend(Enum):
@@ -106,6 +125,7 @@ class IKBiRRT(ob.Planner):
     Attributes:
         iterations: Iterations of the last solve.
         goal_roots: Goal-tree roots of the last solve.
+        retreat_vertices: Goal-tree vertices of the last solve grown by retreats.
     """
 
     def __init__(
@@ -120,6 +140,7 @@ class IKBiRRT(ob.Planner):
         self._rng = np.random.default_rng(self.options.seed)
         self.iterations = 0
         self.goal_roots = 0
+        self.retreat_vertices = 0
         self.start_tree_size = 0
         self.goal_tree_size = 0
 
@@ -131,6 +152,7 @@ class IKBiRRT(ob.Planner):
         super().clear()
         self.iterations = 0
         self.goal_roots = 0
+        self.retreat_vertices = 0
 
     def setup(self) -> None:
         super().setup()
@@ -163,7 +185,7 @@ class IKBiRRT(ob.Planner):
             if root is None and goal.solutions:
                 root = goal.solutions[int(self._rng.integers(len(goal.solutions)))]
             if root is not None:
-                goal_tree.add(root, -1)
+                self._retreat(goal, goal_tree, goal_tree.add(root, -1))
         if goal_tree.size == 0:
             return ob.PlannerStatus(ob.PlannerStatus.TIMEOUT)
 
@@ -174,7 +196,7 @@ class IKBiRRT(ob.Planner):
             if self._rng.random() < self.options.p_sample_goal:
                 root = goal.sample(max_restarts=self.options.goal_restarts)
                 if root is not None:
-                    goal_tree.add(root, -1)
+                    self._retreat(goal, goal_tree, goal_tree.add(root, -1))
                 continue
             grow, other = trees
             target = self._rng.uniform(lower, upper)
@@ -194,6 +216,26 @@ class IKBiRRT(ob.Planner):
         self.start_tree_size = start_tree.size
         self.goal_tree_size = goal_tree.size
         return status
+
+    def _retreat(self, goal: GraspGoal, tree: _Tree, root: int) -> None:
+        """Grow the straight palm retreat from the goal root ``root`` (see the module
+        docstring); a step that collides, that IK cannot reach, or that takes more than
+        one ``max_step`` of joint motion (near a singularity) ends it."""
+        options = self.options
+        steps = math.ceil(options.retreat / options.retreat_step - 1e-9)
+        offset = -options.retreat_step * goal.checker.robot.spec.approach
+        checker = goal.checker
+        index = root
+        q = tree.nodes[root].copy()
+        for _ in range(steps):
+            nxt = goal.ik.palm_step(q, offset)
+            if nxt is None or float(np.linalg.norm(nxt - q)) > options.max_step:
+                return
+            if not checker.check_motion(q, nxt):
+                return
+            index = tree.add(nxt, index)
+            self.retreat_vertices += 1
+            q = nxt
 
     def _extend(
         self, checker: object, tree: _Tree, target: np.ndarray, ptc: ob.PlannerTerminationCondition
