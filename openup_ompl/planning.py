@@ -268,6 +268,7 @@ class GraspPlanningSetup:
             stats.update(
                 iterations=instance.iterations,
                 goal_roots=instance.goal_roots,
+                retreat_vertices=instance.retreat_vertices,
                 start_tree=instance.start_tree_size,
                 goal_tree=instance.goal_tree_size,
             )
