@@ -4,6 +4,7 @@ Reads the output of ``openup-ompl benchmark --fixed-hand`` (both hands ran the s
 side by side in one sweep) and prints, per robot and planner, the median solve time of
 each hand over the robot's suite and their ratio, then the median over the problem x
 planner cells of the per-cell ratio of medians, and the cells above the issue's 1.2x.
+``--table`` also prints the README's per-problem table (both hands side by side).
 
     python benchmarks/law_vs_fixed.py openup-benchmark/summary.json
 """
@@ -36,9 +37,32 @@ def _suite_medians(database: Path) -> dict[tuple[str, str, str], float]:
     return {key: float(np.median(value)) for key, value in times.items()}
 
 
+def _per_problem_table(rows: list[dict]) -> None:
+    by_cell = {(r["problem"], r["planner"], r["hand"]): r for r in rows}
+    print()
+    print(
+        "| problem | planner | success | median [ms] | p95 [ms] | path length [rad] "
+        "| fixed-`w` success | fixed-`w` median [ms] | law / fixed median |"
+    )
+    print("|:--|:--|--:|--:|--:|--:|--:|--:|--:|")
+    for problem, planner in sorted({(r["problem"], r["planner"]) for r in rows}):
+        law = by_cell.get((problem, planner, "law"))
+        fixed = by_cell.get((problem, planner, "fixed"))
+        if law is None or fixed is None:
+            continue
+        print(
+            f"| {problem} | {planner} | {law['success']:.0%} | {law['median_time'] * 1e3:.0f} "
+            f"| {law['p95_time'] * 1e3:.0f} | {law['length']:.2f} | {fixed['success']:.0%} "
+            f"| {fixed['median_time'] * 1e3:.0f} "
+            f"| {law['median_time'] / fixed['median_time']:.2f} |".replace("%", " %")
+        )
+    print()
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("summary", type=Path, help="summary.json of a --fixed-hand benchmark")
+    parser.add_argument("--table", action="store_true", help="also print the per-problem table")
     args = parser.parse_args()
     rows = json.loads(args.summary.read_text())["rows"]
     cells: dict[tuple[str, str], dict[str, float]] = defaultdict(dict)
@@ -72,6 +96,8 @@ def main() -> None:
         f"(range {values.min():.2f}-{values.max():.2f}); "
         f"{int(np.sum(values <= TARGET))}/{values.size} cells at most {TARGET}x"
     )
+    if args.table:
+        _per_problem_table(rows)
     by_planner: dict[str, list[float]] = defaultdict(list)
     for (problem, planner), ratio in ratios.items():
         by_planner[f"{problem.split('.')[0]} {planner}"].append(ratio)
