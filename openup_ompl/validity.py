@@ -236,12 +236,8 @@ class CoupledChecker:
         """Full configurations, hand from the law, for arm states ``(n, dof)``: ``(nq, n)``."""
         arms = np.atleast_2d(arms)
         qs = self._arm_qs(arms)
-        if self.law.fixed is None:
-            steps = self.distance_rates @ np.abs(np.diff(arms, axis=0)).T
-            d = self._law_distances(qs, np.concatenate([[0.0], np.cumsum(steps)]))
-        else:
-            d = np.zeros(arms.shape[0])
-        self._set_hands(qs, d)
+        steps = self.distance_rates @ np.abs(np.diff(arms, axis=0)).T
+        self._set_hands(qs, np.concatenate([[0.0], np.cumsum(steps)]))
         return qs
 
     def _motion_qs(
@@ -253,26 +249,29 @@ class CoupledChecker:
         ends: tuple[float, float],
     ) -> tuple[np.ndarray, np.ndarray]:
         """The states of the motion ``a -> b`` at ``spacing`` [m] in the bound of
-        ``weights``, ``a`` and ``b`` included, and their full configurations: ``(n, dof)``
-        and ``(nq, n)``. ``ends`` are ``d(a)`` and ``d(b)``."""
-        n = self.segment_count(a, b, spacing, weights)
-        arms = a + (np.arange(n + 1, dtype=float) / n)[:, None] * (b - a)
+        ``weights`` (:meth:`interpolate`), ``a`` included, and their full configurations:
+        ``(n, dof)`` and ``(nq, n)``. ``ends`` are ``d(a)`` and ``d(b)``."""
+        arms = np.concatenate([a[None, :], self.interpolate(a, b, spacing, weights)])
         qs = self._arm_qs(arms)
-        fixed = self.law.fixed_clipped
-        if fixed is None:
-            step = float(self.distance_rates @ np.abs(b - a)) / n
-            self._set_hands(qs, self._law_distances(qs, step * np.arange(n + 1), ends))
-        else:
-            qs[self._hand_sel, :] = fixed[:, None]
+        n = arms.shape[0]
+        step = float(self.distance_rates @ np.abs(b - a)) / (n - 1)
+        self._set_hands(qs, step * np.arange(n), ends)
         return arms, qs
 
-    def _set_hands(self, qs: np.ndarray, d: np.ndarray) -> None:
-        """Write the law's hands at the distances ``d`` into the columns of ``qs``."""
+    def _set_hands(
+        self, qs: np.ndarray, path: np.ndarray, ends: tuple[float, float] | None = None
+    ) -> None:
+        """Write the law's hands into the columns of ``qs``, ``d`` bounded along ``path``
+        (see :meth:`_law_distances`)."""
         law = self.law
-        if law.fixed is None and not np.any(d <= law.mga):  # all on the plateau
-            qs[self._hand_sel, :] = law.high[:, None]
-        else:
+        if law.fixed_clipped is not None:
+            qs[self._hand_sel, :] = law.fixed_clipped[:, None]
+            return
+        d = self._law_distances(qs, path, ends)
+        if np.any(d <= law.mga):
             qs[self._hand_sel, :] = law.batch(d).T
+        else:  # all on the plateau
+            qs[self._hand_sel, :] = law.high[:, None]
 
     def _arm_qs(self, arms: np.ndarray) -> np.ndarray:
         """``(nq, n)`` configurations with the arm joints of ``arms``, the rest neutral."""
@@ -309,7 +308,8 @@ class CoupledChecker:
         mga = self.law.mga
         d = np.full(n, mga + 1.0)
         if ends is None:
-            d[0], d[-1] = distance(data, qs[:, 0]), distance(data, qs[:, -1])
+            d[0] = distance(data, qs[:, 0])
+            d[-1] = distance(data, qs[:, -1]) if n > 1 else d[0]
         else:
             d[0], d[-1] = ends
         if n <= 2:

@@ -222,9 +222,9 @@ class IKBiRRT(ob.Planner):
         docstring); a step that collides, that IK cannot reach, or that takes more than
         one ``max_step`` of joint motion (near a singularity) ends it."""
         options = self.options
-        steps = math.ceil(options.retreat / options.retreat_step - 1e-9)
-        offset = -options.retreat_step * goal.checker.robot.spec.approach
         checker = goal.checker
+        steps = math.ceil(options.retreat / options.retreat_step - 1e-9)
+        offset = -options.retreat_step * checker.robot.spec.approach
         index = root
         q = tree.nodes[root].copy()
         for _ in range(steps):
