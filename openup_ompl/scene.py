@@ -17,6 +17,9 @@ from openup_ompl.hand_law import DISTANCE_KINDS, HandLaw
 from openup_ompl.robot import Robot, find_robot_file, load_robot
 
 SHAPES = ("box", "cylinder", "sphere")
+#: The object's mass [kg] and Coulomb friction when the scene gives none (physics only).
+OBJECT_MASS = 0.1
+OBJECT_FRICTION = 0.6
 
 
 @dataclass(frozen=True)
@@ -30,6 +33,9 @@ class Shape:
         size: Box full side lengths [m] (x, y, z).
         radius: Cylinder or sphere radius [m].
         length: Cylinder length [m] along its local z.
+        mass: Mass [kg] (the object only: it is a free body in physics).
+        friction: Coulomb friction coefficient in physics (``None``: the simulator's
+            default; the object's default is :data:`OBJECT_FRICTION`).
         raw: The table as written in the scene file (repeated in plan files).
     """
 
@@ -39,12 +45,26 @@ class Shape:
     size: np.ndarray | None = None
     radius: float | None = None
     length: float | None = None
+    mass: float | None = None
+    friction: float | None = None
     raw: dict[str, Any] = field(default_factory=dict, compare=False)
 
     @classmethod
-    def from_table(cls, table: Any, where: str) -> Shape:
+    def from_table(cls, table: Any, where: str, *, is_object: bool = False) -> Shape:
+        """Read a scene's ``[object]`` (``is_object``) or ``[[obstacles]]`` table."""
         if not isinstance(table, dict):
             raise ConfigError(where, table, "a table with name, shape, pose and dimensions")
+        physics: dict[str, Any] = {}
+        if is_object:
+            physics["mass"] = _toml.number(
+                table.get("mass", OBJECT_MASS), f"{where}.mass", low=1e-6
+            )
+        elif "mass" in table:
+            raise ConfigError(f"{where}.mass", table["mass"], "no mass: obstacles are fixed")
+        if "friction" in table or is_object:
+            physics["friction"] = _toml.number(
+                table.get("friction", OBJECT_FRICTION), f"{where}.friction", low=0.0
+            )
         name = _toml.string(_toml.require(table, "name", where), f"{where}.name")
         shape = _toml.require(table, "shape", where)
         if shape not in SHAPES:
@@ -54,12 +74,12 @@ class Shape:
             size = _toml.vector(_toml.require(table, "size", where), f"{where}.size", 3)
             if np.any(size <= 0):
                 raise ConfigError(f"{where}.size", table["size"], "three positive lengths [m]")
-            return cls(name, shape, pose, size=size, raw=dict(table))
+            return cls(name, shape, pose, size=size, raw=dict(table), **physics)
         radius = _toml.number(_toml.require(table, "radius", where), f"{where}.radius", low=1e-6)
         if shape == "sphere":
-            return cls(name, shape, pose, radius=radius, raw=dict(table))
+            return cls(name, shape, pose, radius=radius, raw=dict(table), **physics)
         length = _toml.number(_toml.require(table, "length", where), f"{where}.length", low=1e-6)
-        return cls(name, shape, pose, radius=radius, length=length, raw=dict(table))
+        return cls(name, shape, pose, radius=radius, length=length, raw=dict(table), **physics)
 
     @property
     def placement(self) -> pin.SE3:
@@ -187,7 +207,11 @@ def load_scene(path: str | Path, robot: Robot | None = None) -> Problem:
     obstacles = [
         Shape.from_table(t, f"{where}: obstacles[{i}]") for i, t in enumerate(obstacles_raw)
     ]
-    obj = Shape.from_table(raw["object"], f"{where}: object") if "object" in raw else None
+    obj = (
+        Shape.from_table(raw["object"], f"{where}: object", is_object=True)
+        if "object" in raw
+        else None
+    )
     names = [shape.name for shape in obstacles] + ([obj.name] if obj else [])
     duplicate = next((n for n in names if names.count(n) > 1), None)
     if duplicate is not None:

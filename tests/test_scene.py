@@ -214,3 +214,18 @@ def test_scene_robot_may_be_a_relative_path(panda_toml, default_scene_text, tmp_
     scene.write_text(edited(default_scene_text, 'robot = "panda"', 'robot = "robots/mypanda.toml"'))
     problem = ou.load_scene(scene)
     assert problem.robot.spec.path == (tmp_path / "robots" / "mypanda.toml").resolve()
+
+
+def test_object_physics_keys_default_and_validate(tmp_path):
+    """[object] mass and friction default to 0.1 kg and 0.6; bad values name the key."""
+    import openup_ompl as oo
+    from openup_ompl.scene import OBJECT_FRICTION, OBJECT_MASS
+
+    problem = oo.load_scene(oo.default_scene_path())
+    assert problem.object is not None
+    assert (problem.object.mass, problem.object.friction) == (OBJECT_MASS, OBJECT_FRICTION)
+    text = oo.default_scene_path().read_text()
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text.replace('name = "can"', 'name = "can"\nmass = -1.0'))
+    with pytest.raises(oo.ConfigError, match="object.mass"):
+        oo.load_scene(bad)

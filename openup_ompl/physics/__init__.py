@@ -1,0 +1,1 @@
+"""Physics execution of plans in MuJoCo (optional: ``pip install mujoco``)."""

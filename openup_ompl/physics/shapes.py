@@ -1,0 +1,89 @@
+"""Scene shapes as MuJoCo geoms: the one translation of a :class:`~openup_ompl.scene.Shape`
+into an ``mujoco.MjSpec``, shared by the physics world and the simulated camera.
+
+MuJoCo sizes are half-sizes (a box's half sides, a cylinder's radius and half length) and
+its quaternions are scalar first; scene poses are scalar last (``pinocchio.XYZQUATToSE3``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+if TYPE_CHECKING:
+    import mujoco
+
+    from openup_ompl.scene import Problem, Shape
+
+__all__ = ["add_shape", "mujoco_quat", "scene_spec"]
+
+
+def mujoco_quat(pose: Sequence[float]) -> np.ndarray:
+    """``[qw, qx, qy, qz]`` of a ``[x, y, z, qx, qy, qz, qw]`` pose."""
+    q = np.asarray(pose, dtype=float)[3:7]
+    return np.array([q[3], q[0], q[1], q[2]])
+
+
+def _geom_type_and_size(shape: Shape) -> tuple[Any, list[float]]:
+    import mujoco
+
+    if shape.shape == "box":
+        assert shape.size is not None
+        return mujoco.mjtGeom.mjGEOM_BOX, [float(x) / 2 for x in shape.size]
+    assert shape.radius is not None
+    if shape.shape == "sphere":
+        return mujoco.mjtGeom.mjGEOM_SPHERE, [shape.radius, 0.0, 0.0]
+    assert shape.length is not None
+    return mujoco.mjtGeom.mjGEOM_CYLINDER, [shape.radius, shape.length / 2, 0.0]
+
+
+def add_shape(
+    body: mujoco.MjsBody, shape: Shape, *, local: bool = False, **attributes: Any
+) -> mujoco.MjsGeom:
+    """Add ``shape`` as a geom of ``body`` (named as the shape).
+
+    Args:
+        body: The spec body that holds it (``spec.worldbody`` for a static shape).
+        shape: The scene shape.
+        local: Place the geom at the body's origin (the body carries the pose, as a free
+            object's body does) instead of at the shape's world pose.
+        attributes: Further geom attributes (``friction``, ``mass``, ``rgba``, ...).
+    """
+    geom_type, size = _geom_type_and_size(shape)
+    pose = np.asarray(shape.pose, dtype=float)
+    placement = {} if local else {"pos": pose[:3].tolist(), "quat": mujoco_quat(pose).tolist()}
+    return body.add_geom(name=shape.name, type=geom_type, size=size, **placement, **attributes)
+
+
+def scene_spec(problem: Problem, *, free_object: bool = False) -> mujoco.MjSpec:
+    """A spec of the scene alone: every obstacle a static geom of the world body, and the
+    object a geom of its own body ``"object"`` (with a free joint if ``free_object``).
+
+    The object's mass and friction are the scene's (``[object] mass``, ``friction``); an
+    obstacle's friction is its own ``friction`` key, else MuJoCo's default.
+    """
+    import mujoco
+
+    spec = mujoco.MjSpec()
+    for obstacle in problem.obstacles:
+        add_shape(spec.worldbody, obstacle, **_contact(obstacle))
+    if problem.object is not None:
+        pose = np.asarray(problem.object.pose, dtype=float)
+        body = spec.worldbody.add_body(
+            name="object", pos=pose[:3].tolist(), quat=mujoco_quat(pose).tolist()
+        )
+        if free_object:
+            body.add_freejoint(name="object")
+        add_shape(
+            body, problem.object, local=True, mass=problem.object.mass, **_contact(problem.object)
+        )
+    return spec
+
+
+def _contact(shape: Shape) -> dict[str, Any]:
+    if shape.friction is None:
+        return {}
+    # MuJoCo's friction: sliding, torsional, rolling (its defaults for the last two).
+    return {"friction": [shape.friction, 0.005, 0.0001]}
