@@ -16,10 +16,13 @@ from openup_ompl.exceptions import (
     FrameNotFound,
     InvalidProblem,
     JointNotFound,
+    MissingExtra,
     OpenUpError,
     PlanningFailed,
     RobotNotFound,
+    SweepFailed,
     UnreachableGrasp,
+    VerifyFailed,
 )
 from openup_ompl.goal import GraspGoal, IKGoalRegion
 from openup_ompl.grasp import (
@@ -71,6 +74,7 @@ __all__ = [
     "IKSolver",
     "InvalidProblem",
     "JointNotFound",
+    "MissingExtra",
     "OpenUpError",
     "Plan",
     "PlanningFailed",
@@ -80,7 +84,9 @@ __all__ = [
     "RobustnessOptions",
     "RobustnessResult",
     "Shape",
+    "SweepFailed",
     "UnreachableGrasp",
+    "VerifyFailed",
     "__version__",
     "available_robots",
     "close_hand",

@@ -16,7 +16,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from openup_ompl.exceptions import OpenUpError, PlanningFailed
+from openup_ompl.exceptions import MissingExtra, OpenUpError, PlanningFailed
 
 
 def _parsed(text: str, kind: type, ok: Callable[[float], bool], expected: str) -> Any:
@@ -291,7 +291,6 @@ def _plan_command(args: argparse.Namespace) -> int:
 
 
 def _demo_command(args: argparse.Namespace) -> int:
-    from openup_ompl.figures import MissingExtra
     from openup_ompl.scene import default_scene_path
 
     _, plan = _plan(args, default_scene_path())
@@ -321,10 +320,10 @@ def _show_command(args: argparse.Namespace) -> int:
 
 
 def _law_command(args: argparse.Namespace) -> int:
-    from openup_ompl.figures import plot_law
     from openup_ompl.robot import load_robot
     from openup_ompl.scene import load_scene
     from openup_ompl.viz._scene import prismatic_joints
+    from openup_ompl.viz.law import plot_law
 
     if args.scene is not None:
         problem = load_scene(args.scene)

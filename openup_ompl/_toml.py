@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+import difflib
 import math
 import sys
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -27,6 +28,24 @@ def read_toml(path: Path, what: str) -> dict[str, Any]:
         raise ConfigError(what, str(path), "an existing TOML file") from None
     except (OSError, tomllib.TOMLDecodeError) as error:
         raise ConfigError(what, str(path), f"a readable TOML file ({error})") from None
+
+
+def unknown_key(where: str, key: str, value: Any, known: Iterable[str]) -> ConfigError:
+    """The error for an unknown ``key`` of the table at ``where``: it names the key, the
+    nearest valid one (a likely typo) and every valid one."""
+    known = sorted(known)
+    near = difflib.get_close_matches(key, known, n=1)
+    hint = f"did you mean {near[0]!r}? " if near else ""
+    prefix = f"{where}." if where and not where.endswith(": ") else where
+    return ConfigError(f"{prefix}{key}", value, f"a known key ({hint}one of {known})")
+
+
+def check_keys(table: Mapping[str, Any], known: Iterable[str], where: str) -> None:
+    """Reject a table holding a key outside ``known`` (see :func:`unknown_key`)."""
+    known = set(known)
+    unknown = sorted(set(table) - known)
+    if unknown:
+        raise unknown_key(where, unknown[0], table[unknown[0]], known)
 
 
 def require(table: Mapping[str, Any], key: str, where: str) -> Any:

@@ -29,8 +29,9 @@ from typing import Any
 
 import numpy as np
 
-from openup_ompl.exceptions import ConfigError, OpenUpError
+from openup_ompl.exceptions import ConfigError, MissingExtra, OpenUpError
 from openup_ompl.executor import Task, load_records, run_tasks
+from openup_ompl.viz._mpl import _pyplot, _save
 
 __all__ = [
     "EXTRA_COLUMNS",
@@ -316,7 +317,6 @@ def plot_results(rows: Sequence[dict[str, Any]], out: Path) -> list[Path]:
     Raises:
         MissingExtra: matplotlib is not installed.
     """
-    from openup_ompl.figures import _pyplot, _save
 
     plt = _pyplot()
     problems = sorted({r["problem"] for r in rows})
@@ -420,8 +420,6 @@ def run_benchmark(
     summary.write_text(json.dumps({"rows": rows}, indent=1, default=str) + "\n")
     drawn: list[Path] = []
     if plots:
-        from openup_ompl.figures import MissingExtra
-
         try:
             drawn = plot_results(rows, out)
         except MissingExtra as error:

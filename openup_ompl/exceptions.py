@@ -6,6 +6,7 @@ caller can react programmatically and the command line can print one clear line.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 
@@ -130,4 +131,50 @@ class PlanningFailed(OpenUpError):
         self.time_limit = time_limit
         super().__init__(
             f"{planner} found no exact solution within {time_limit} s (OMPL status: {status})"
+        )
+
+
+class VerifyFailed(PlanningFailed):
+    """A path the planner returned fails its independent re-check (never expected from a
+    correct planner: it points at a bug, not at a hard problem).
+
+    Attributes:
+        reason: What the re-check found (e.g. ``"path row 12 collides"``).
+        planner: The planner that returned the path.
+    """
+
+    def __init__(self, reason: str, planner: str = "") -> None:
+        OpenUpError.__init__(self, f"the plan fails its re-check: {reason}")
+        self.reason = reason
+        self.status = reason
+        self.planner = planner
+        self.time_limit = math.nan
+
+
+class MissingExtra(OpenUpError, ImportError):
+    """An optional dependency is not installed.
+
+    Attributes:
+        module: The missing module.
+        extra: The ``pip install 'openup-ompl[extra]'`` that brings it.
+    """
+
+    def __init__(self, module: str, extra: str) -> None:
+        self.module = module
+        self.extra = extra
+        super().__init__(f"{module} is needed for this: pip install 'openup-ompl[{extra}]'")
+
+
+class SweepFailed(OpenUpError):
+    """Some tasks of a sweep failed on every attempt.
+
+    Attributes:
+        failures: Task key -> the last error message.
+    """
+
+    def __init__(self, failures: dict[str, str]) -> None:
+        self.failures = dict(failures)
+        first = next(iter(self.failures.items()))
+        super().__init__(
+            f"{len(self.failures)} task(s) failed on every attempt; first {first[0]!r}: {first[1]}"
         )

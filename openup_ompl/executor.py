@@ -29,7 +29,6 @@ import json
 import os
 import subprocess
 import sys
-import tempfile
 import time
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
@@ -37,7 +36,8 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from openup_ompl.exceptions import ConfigError, OpenUpError
+from openup_ompl._io import write_atomic
+from openup_ompl.exceptions import ConfigError, MissingExtra, SweepFailed
 
 __all__ = [
     "SweepFailed",
@@ -48,21 +48,6 @@ __all__ = [
     "selfcheck_task",
     "shard_path",
 ]
-
-
-class SweepFailed(OpenUpError):
-    """Some tasks of a sweep failed on every attempt.
-
-    Attributes:
-        failures: Task key -> the last error message.
-    """
-
-    def __init__(self, failures: dict[str, str]) -> None:
-        self.failures = dict(failures)
-        first = next(iter(self.failures.items()))
-        super().__init__(
-            f"{len(self.failures)} task(s) failed on every attempt; first {first[0]!r}: {first[1]}"
-        )
 
 
 @dataclass(frozen=True)
@@ -99,20 +84,6 @@ def shard_path(shards: Path, key: str) -> Path:
     return Path(shards) / f"{key}.json"
 
 
-def _write_atomic(path: Path, text: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w") as handle:
-            handle.write(text)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def _execute(task: Task, shards: Path) -> dict[str, Any]:
     """Inside the task process: seed OMPL, call the function, write the shard."""
     from ompl import util as ompl_util
@@ -123,7 +94,7 @@ def _execute(task: Task, shards: Path) -> dict[str, Any]:
     function: Callable[..., dict[str, Any]] = getattr(importlib.import_module(module), name)
     record = dict(function(seed=task.seed, **task.kwargs))
     record.setdefault("key", task.key)
-    _write_atomic(shard_path(shards, task.key), json.dumps(record, sort_keys=True) + "\n")
+    write_atomic(shard_path(shards, task.key), json.dumps(record, sort_keys=True) + "\n")
     return record
 
 
@@ -276,8 +247,6 @@ def _run_dask(
     try:
         from dask.distributed import Client, as_completed
     except ImportError as error:  # pragma: no cover - depends on the environment
-        from openup_ompl.figures import MissingExtra
-
         raise MissingExtra("dask[distributed]", "distributed") from error
     failures: dict[str, str] = {}
     with Client(scheduler, timeout="30s") as client:

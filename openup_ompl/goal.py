@@ -12,15 +12,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pinocchio as pin
 from ompl import base as ob
 
 from openup_ompl.exceptions import UnreachableGrasp
+from openup_ompl.hand_law import palm_distance
 from openup_ompl.ik import IKSolver
 from openup_ompl.validity import CoupledChecker
 
-#: Weight of the rotation error in the task-space goal distance [m/rad].
-ROTATION_WEIGHT = 0.1
 #: Default goal threshold on that distance [m]: a goal state is within 1 mm and 0.01 rad.
 GOAL_THRESHOLD = 1e-3
 
@@ -98,9 +96,7 @@ class GraspGoal:
         q = self._q
         q[self.checker.robot.arm_idx] = arm
         placement = self.checker.robot.palm_placement(self._data, q)
-        position = float(np.linalg.norm(placement.translation - self._target_position))
-        angle = float(np.linalg.norm(pin.log3(self._target_rotation_t @ placement.rotation)))
-        return position + ROTATION_WEIGHT * angle
+        return palm_distance(placement, self._target_position, self._target_rotation_t)
 
 
 class IKGoalRegion(ob.GoalSampleableRegion):

@@ -8,17 +8,50 @@ configurations ``c`` (close preshape, reached at the grasp), ``b`` (base open ha
 
 from __future__ import annotations
 
+import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
+from openup_ompl._toml import unknown_key
 from openup_ompl.exceptions import ConfigError
 
 #: Names accepted for :attr:`HandLaw.distance`.
 DISTANCE_KINDS = ("translation", "weighted")
+#: Weight of the palm-to-grasp rotation angle in a task-space distance [m/rad]: the
+#: ``"weighted"`` law distance's default and the goal region's error (0.1 m per rad: 1 mm
+#: of position counts as much as 0.01 rad).
+ROTATION_WEIGHT = 0.1
+
+
+def palm_distance(
+    placement: pin.SE3,
+    goal_position: np.ndarray,
+    goal_rotation_t: np.ndarray | None = None,
+    rotation_weight: float = ROTATION_WEIGHT,
+) -> float:
+    """Task-space distance [m] of a palm placement to a grasp (world frame): the Euclidean
+    distance between their origins plus ``rotation_weight`` [m/rad] times the angle of the
+    rotation between them (left out when ``goal_rotation_t`` is ``None``).
+
+    Args:
+        placement: The palm frame's placement.
+        goal_position: The grasp position [m].
+        goal_rotation_t: The transpose of the grasp rotation, or ``None`` for the
+            translation alone.
+        rotation_weight: [m/rad].
+    """
+    p = placement.translation
+    dx, dy, dz = p[0] - goal_position[0], p[1] - goal_position[1], p[2] - goal_position[2]
+    dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+    if goal_rotation_t is not None:
+        angle = np.linalg.norm(pin.log3(goal_rotation_t @ placement.rotation))
+        dist += rotation_weight * float(angle)
+    return dist
 
 
 def _check_unit(name: str, value: float, *, low_open: bool = False) -> float:
@@ -133,7 +166,7 @@ class HandLaw:
     continuous: bool = False
     open_arrival: bool = False
     distance: str = "translation"
-    rotation_weight: float = 0.1  # [m/rad]
+    rotation_weight: float = ROTATION_WEIGHT  # [m/rad]
     fixed: np.ndarray | None = None
     arrival: np.ndarray = field(init=False, repr=False, compare=False)
     low_slope: np.ndarray = field(init=False, repr=False, compare=False)
@@ -142,9 +175,20 @@ class HandLaw:
     fixed_clipped: np.ndarray | None = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
+        for name in ("continuous", "open_arrival"):
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                raise ConfigError(f"hand.{name}", getattr(self, name), "true or false")
+            object.__setattr__(self, name, bool(getattr(self, name)))
+        for name in ("u", "mga", "rotation_weight"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)):
+                raise ConfigError(f"hand.{name}", value, "a number")
         arrays = {}
         for name in ("c", "b", "w", "lower", "upper"):
-            value = np.array(getattr(self, name), dtype=float)
+            try:
+                value = np.array(getattr(self, name), dtype=float)
+            except (TypeError, ValueError):
+                value = np.full(2, np.nan)
             if value.ndim != 1 or not np.all(np.isfinite(value)):
                 raise ConfigError(f"hand.{name}", getattr(self, name), "a finite list of numbers")
             arrays[name] = value
@@ -155,19 +199,23 @@ class HandLaw:
                     f"hand.{name}", arrays[name].tolist(), f"{n} values, one per hand joint"
                 )
         if self.fixed is not None:
-            fixed = np.array(self.fixed, dtype=float)
+            try:
+                fixed = np.array(self.fixed, dtype=float)
+            except (TypeError, ValueError):
+                fixed = np.full(n, np.nan)
             if fixed.shape != (n,) or not np.all(np.isfinite(fixed)):
-                raise ConfigError("fixed hand", self.fixed, f"{n} finite values")
+                raise ConfigError("hand.fixed", self.fixed, f"{n} finite values")
             object.__setattr__(self, "fixed", fixed)
         if self.distance not in DISTANCE_KINDS:
-            raise ConfigError("hand law distance", self.distance, f"one of {DISTANCE_KINDS}")
+            raise ConfigError("hand.distance", self.distance, f"one of {DISTANCE_KINDS}")
         if not (math.isfinite(self.rotation_weight) and self.rotation_weight >= 0):
-            raise ConfigError("rotation_weight", self.rotation_weight, "a number >= 0 [m/rad]")
+            raise ConfigError("hand.rotation_weight", self.rotation_weight, "a number >= 0 [m/rad]")
+        object.__setattr__(self, "rotation_weight", float(self.rotation_weight))
         for name, value in arrays.items():
             value.flags.writeable = False
             object.__setattr__(self, name, value)
-        object.__setattr__(self, "u", _check_unit("u", self.u))
-        object.__setattr__(self, "mga", _check_unit("mga", self.mga, low_open=True))
+        object.__setattr__(self, "u", _check_unit("hand.u", self.u))
+        object.__setattr__(self, "mga", _check_unit("hand.mga", self.mga, low_open=True))
         c, b, w = arrays["c"], arrays["b"], arrays["w"]
         lower, upper = arrays["lower"], arrays["upper"]
         plateau = b + (w - b) * self.u
@@ -216,42 +264,59 @@ class HandLaw:
         low = np.clip(self.arrival + d * self.low_slope, self.lower, self.upper)
         return np.where(d > self.mga, self.high, low)
 
+    @classmethod
+    def from_table(
+        cls,
+        table: Mapping[str, Any],
+        lower: np.ndarray,
+        upper: np.ndarray,
+        where: str = "hand",
+        ignore: Sequence[str] = (),
+    ) -> HandLaw:
+        """Build a law from a table: a scene's or robot's ``[hand]`` merged onto defaults,
+        or a plan file's ``hand_law``. Its keys are the :data:`TABLE_FIELDS`; the values
+        are checked once, by the constructor.
+
+        Args:
+            table: Field name -> value (``None`` values are left at their default).
+            lower: Hand joint lower limits (from the robot model, not the table).
+            upper: Hand joint upper limits.
+            where: Prefix of error locations (file and table, e.g. ``"scene.toml: hand"``).
+            ignore: Further keys to skip (e.g. the plan file's ``start_palm_distance``).
+
+        Raises:
+            ConfigError: An unknown key (naming the nearest valid one), a missing
+                ``c``/``b``/``w``/``u``/``mga``, or a bad value, located at ``where.key``.
+        """
+        unknown = sorted(set(table) - set(TABLE_FIELDS) - set(ignore))
+        if unknown:
+            raise unknown_key(where, unknown[0], table[unknown[0]], TABLE_FIELDS)
+        given = {k: v for k, v in table.items() if k in TABLE_FIELDS and v is not None}
+        missing = [k for k in ("c", "b", "w", "u", "mga") if k not in given]
+        if missing:
+            raise ConfigError(f"{where}.{missing[0]}", None, f"a {where} table with {missing[0]}")
+        try:
+            return cls(lower=lower, upper=upper, **given)
+        except ConfigError as error:
+            key = error.where.removeprefix("hand.")
+            raise ConfigError(f"{where}.{key}", error.value, error.expected) from None
+
     def with_options(self, **changes: object) -> HandLaw:
-        """A copy with some fields replaced (e.g. ``u``), validated again."""
-        fields = {
-            name: getattr(self, name)
-            for name in (
-                "c",
-                "b",
-                "w",
-                "u",
-                "mga",
-                "lower",
-                "upper",
-                "continuous",
-                "open_arrival",
-                "distance",
-                "rotation_weight",
-                "fixed",
-            )
-        }
-        fields.update(changes)
-        return HandLaw(**fields)  # type: ignore[arg-type]
+        """A copy with some fields replaced (e.g. ``u``), validated again
+        (``dataclasses.replace``)."""
+        return dataclasses.replace(self, **changes)  # type: ignore[arg-type]
 
     def to_dict(self) -> dict[str, object]:
-        """The law as written in a plan file (CONTRACT §4, ``hand_law``)."""
-        return {
-            "c": self.c.tolist(),
-            "b": self.b.tolist(),
-            "w": self.w.tolist(),
-            "u": self.u,
-            "mga": self.mga,
-            "continuous": self.continuous,
-            "open_arrival": self.open_arrival,
-            "distance": self.distance,
-            "rotation_weight": self.rotation_weight,
-            "fixed": None if self.fixed is None else self.fixed.tolist(),
-        }
+        """The law as written in a plan file (README, "Plan file": ``hand_law``)."""
+        values = {name: getattr(self, name) for name in TABLE_FIELDS}
+        return {k: v.tolist() if isinstance(v, np.ndarray) else v for k, v in values.items()}
+
+
+#: The fields a law table (a scene's ``[hand]``, a plan file's ``hand_law``) may set: every
+#: constructor field but the joint limits, which come from the robot model.
+TABLE_FIELDS: tuple[str, ...] = tuple(
+    f.name for f in dataclasses.fields(HandLaw) if f.init and f.name not in ("lower", "upper")
+)
 
 
 class GoalDistance:
@@ -273,13 +338,12 @@ class GoalDistance:
         grasp: pin.SE3,
         start_placement: pin.SE3,
         distance: str = "translation",
-        rotation_weight: float = 0.1,
+        rotation_weight: float = ROTATION_WEIGHT,
     ) -> None:
         if distance not in DISTANCE_KINDS:
             raise ConfigError("hand law distance", distance, f"one of {DISTANCE_KINDS}")
         self._goal = grasp.translation.copy()
-        self._goal_rot_t = grasp.rotation.T.copy()
-        self._weighted = distance == "weighted"
+        self._goal_rot_t = grasp.rotation.T.copy() if distance == "weighted" else None
         self._rotation_weight = float(rotation_weight)
         self.start_distance = self.raw(start_placement)
         if self.start_distance <= 1e-9:
@@ -290,13 +354,7 @@ class GoalDistance:
 
     def raw(self, placement: pin.SE3) -> float:
         """Un-normalised distance ``D`` [m] of a palm placement to the grasp."""
-        p = placement.translation
-        dx, dy, dz = p[0] - self._goal[0], p[1] - self._goal[1], p[2] - self._goal[2]
-        dist = math.sqrt(dx * dx + dy * dy + dz * dz)
-        if self._weighted:
-            angle = np.linalg.norm(pin.log3(self._goal_rot_t @ placement.rotation))
-            dist += self._rotation_weight * float(angle)
-        return dist
+        return palm_distance(placement, self._goal, self._goal_rot_t, self._rotation_weight)
 
     def __call__(self, placement: pin.SE3) -> float:
         """Normalised distance ``d`` of a palm placement (0 at the grasp, 1 at the start)."""

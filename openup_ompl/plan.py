@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from openup_ompl._io import write_atomic
 from openup_ompl.exceptions import ConfigError
 from openup_ompl.hand_law import HandLaw
 from openup_ompl.scene import Problem
@@ -99,11 +100,7 @@ class Plan:
         path = Path(path)
         if not np.all(np.isfinite(self.path)):
             raise ConfigError("plan path", "non-finite values", "a finite path")
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(path.suffix + ".tmp")
-        tmp.write_text(json.dumps(self.to_dict(), indent=1, allow_nan=False))
-        tmp.replace(path)
-        return path
+        return write_atomic(path, json.dumps(self.to_dict(), indent=1, allow_nan=False))
 
 
 def read_plan(path: str | Path) -> dict[str, Any]:

@@ -17,7 +17,7 @@ import numpy as np
 from ompl import base as ob
 from ompl import geometric as og
 
-from openup_ompl.exceptions import ConfigError, InvalidProblem, PlanningFailed
+from openup_ompl.exceptions import ConfigError, InvalidProblem, PlanningFailed, VerifyFailed
 from openup_ompl.goal import GOAL_THRESHOLD, GraspGoal, IKGoalRegion
 from openup_ompl.hand_law import HandLaw
 from openup_ompl.ik import IKOptions, IKSolver
@@ -310,19 +310,17 @@ class GraspPlanningSetup:
         grasp pose within the goal threshold, and collide nowhere.
 
         Raises:
-            PlanningFailed: With the reason; never expected from a correct planner.
+            VerifyFailed: With the reason; never expected from a correct planner.
         """
         robot = self.problem.robot
         arms = path[:, robot.arm_idx]
         if not np.allclose(arms[0], self.problem.start, atol=1e-9):
-            raise PlanningFailed("path does not start at the start", "verify", 0.0)
+            raise VerifyFailed("the path does not start at the start")
         distance = self.goal.distance(arms[-1])
         if distance > GOAL_THRESHOLD:
-            raise PlanningFailed(f"path ends {distance:.2e} m from the grasp pose", "verify", 0.0)
+            raise VerifyFailed(f"the path ends {distance:.2e} m from the grasp pose")
         flags = self.checker.finest_world.batch_in_collision(
             np.asfortranarray(path.T), stop_at_first=False
         )
         if np.any(flags):
-            raise PlanningFailed(
-                f"path row {int(np.flatnonzero(flags)[0])} collides", "verify", 0.0
-            )
+            raise VerifyFailed(f"path row {int(np.flatnonzero(flags)[0])} collides")

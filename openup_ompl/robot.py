@@ -11,6 +11,7 @@ import hashlib
 import os
 import warnings
 import xml.etree.ElementTree as ET
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -20,6 +21,7 @@ import numpy as np
 import pinocchio as pin
 
 from openup_ompl import _toml
+from openup_ompl._io import write_atomic
 from openup_ompl._resources import data_dir, erd_share_dir, resolve_path
 from openup_ompl.exceptions import ConfigError, FrameNotFound, JointNotFound, RobotNotFound
 from openup_ompl.hand_law import HandLaw
@@ -70,11 +72,7 @@ def _mount_spec(raw: Any, where: str, base: Path) -> MountSpec:
     if not isinstance(raw, dict):
         raise ConfigError(f"{where}: mount", raw, "a [mount] table")
     known = {"urdf", "srdf", "frame", "pose", "prefix", "disable_collisions"}
-    unknown = sorted(set(raw) - known)
-    if unknown:
-        raise ConfigError(
-            f"{where}: mount.{unknown[0]}", raw[unknown[0]], f"one of {sorted(known)}"
-        )
+    _toml.check_keys(raw, known, f"{where}: mount")
     srdf = raw.get("srdf")
     prefix = raw.get("prefix", "")
     if not isinstance(prefix, str):
@@ -113,9 +111,7 @@ def _mimic_specs(raw: Any, where: str, arm: list[str], hand: list[str]) -> tuple
             raise ConfigError(key, follower, "a follower not listed in arm_joints or hand_joints")
         if not isinstance(entry, dict):
             raise ConfigError(key, entry, "{ joint = LEADER, multiplier = M, offset = O }")
-        unknown = sorted(set(entry) - {"joint", "multiplier", "offset"})
-        if unknown:
-            raise ConfigError(f"{key}.{unknown[0]}", entry[unknown[0]], "joint, multiplier, offset")
+        _toml.check_keys(entry, {"joint", "multiplier", "offset"}, key)
         leader = _toml.string(_toml.require(entry, "joint", key), f"{key}.joint")
         if leader not in hand:
             raise ConfigError(f"{key}.joint", leader, f"a driven hand joint, one of {hand}")
@@ -209,9 +205,7 @@ class RobotSpec:
             "name", "description", "urdf", "srdf", "palm_frame", "approach", "arm_joints",
             "hand_joints", "home", "convex", "padding", "hand", "mount", "mimic",
         }  # fmt: skip
-        unknown = sorted(set(raw) - known)
-        if unknown:
-            raise ConfigError(f"{where}: {unknown[0]}", raw[unknown[0]], f"one of {sorted(known)}")
+        _toml.check_keys(raw, known, f"{where}: ")
         srdf = raw.get("srdf")
         convex = raw.get("convex", True)
         if not isinstance(convex, bool):
@@ -434,29 +428,47 @@ class Robot:
         q[self.hand_idx] = self.expand_hand(hand) if hand.size == self.n_driven else hand
         return q
 
-    def hand_law(self, **overrides: object) -> HandLaw:
-        """The robot's hand law (its ``[hand]`` table), with fields overridden.
+    def hand_law(
+        self,
+        table: Mapping[str, Any] | None = None,
+        *,
+        where: str = "hand",
+        **overrides: object,
+    ) -> HandLaw:
+        """The robot's hand law (its ``[hand]`` table) with fields overridden by ``table``
+        (e.g. a scene's ``[hand]``) and then by ``overrides``; ``None`` values are ignored.
 
         ``c``, ``b``, ``w`` (and overrides of them given for the driven joints only) are
         expanded to the mimic followers: Algorithm 3 is an affine combination of them with
         weights summing to one, so a follower set by the law stays ``multiplier * leader +
         offset`` (up to clipping on each joint's own limits).
+
+        Raises:
+            ConfigError: An unknown field or a bad value, located at ``where.key``.
         """
-        fields: dict[str, object] = {
+        fields: dict[str, Any] = {
             "c": self.expand_hand(self.spec.c),
             "b": self.expand_hand(self.spec.b),
             "w": self.expand_hand(self.spec.w),
             "u": self.spec.u,
             "mga": self.spec.mga,
-            "lower": self.model.lowerPositionLimit[self.hand_idx],
-            "upper": self.model.upperPositionLimit[self.hand_idx],
         }
+        changes = {**(table or {}), **overrides}
         for key in ("c", "b", "w"):
-            value = overrides.get(key)
-            if value is not None and np.size(value) == self.n_driven:  # type: ignore[arg-type]
-                overrides[key] = self.expand_hand(np.asarray(value))
-        fields.update({k: v for k, v in overrides.items() if v is not None})
-        return HandLaw(**fields)  # type: ignore[arg-type]
+            value = changes.get(key)
+            if value is None or isinstance(value, str):
+                continue
+            size = np.size(value)  # type: ignore[arg-type]
+            if size == self.n_driven:
+                changes[key] = self.expand_hand(np.asarray(value, dtype=float))
+            elif size != self.hand_idx.size:
+                raise ConfigError(
+                    f"{where}.{key}", value, f"{self.n_driven} values, one per driven hand joint"
+                )
+        fields.update({k: v for k, v in changes.items() if v is not None})
+        lower = self.model.lowerPositionLimit[self.hand_idx]
+        upper = self.model.upperPositionLimit[self.hand_idx]
+        return HandLaw.from_table(fields, lower, upper, where)
 
     def check_arm(self, arm: np.ndarray, what: str) -> np.ndarray:
         """Validate an arm configuration: right length, finite, inside the joint limits."""
@@ -515,10 +527,7 @@ def _write_cached(text: str, stem: str, suffix: str) -> Path:
     digest = hashlib.sha256(text.encode()).hexdigest()[:16]
     path = cache_dir() / f"{stem}-{digest}{suffix}"
     if not path.is_file():
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_text(text)
-        tmp.replace(path)
+        write_atomic(path, text)
     return path
 
 

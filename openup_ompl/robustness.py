@@ -39,9 +39,10 @@ import numpy as np
 import pinocchio as pin
 
 from openup_ompl._resources import data_dir
-from openup_ompl.exceptions import ConfigError, InvalidProblem
+from openup_ompl.exceptions import ConfigError, InvalidProblem, MissingExtra
 from openup_ompl.executor import Task, load_records, run_tasks
 from openup_ompl.scene import Problem, Shape
+from openup_ompl.viz._mpl import _pyplot, _save
 
 if TYPE_CHECKING:
     from openup_ompl.grasp import GraspResult
@@ -442,7 +443,6 @@ def write_csv(rows: Sequence[dict[str, Any]], path: Path) -> Path:
 def plot_robustness(rows: Sequence[dict[str, Any]], path: Path, title: str = "") -> Path:
     """Success rate against the error magnitude, one line per ``u``: all directions
     pooled, then one panel per direction."""
-    from openup_ompl.figures import _pyplot, _save
 
     plt = _pyplot()
     us = sorted({row["u"] for row in rows})
@@ -547,7 +547,6 @@ def run_robustness(
     markdown.write_text(
         f"# Robustness to object pose errors\n\n{title}\n\n" + markdown_tables(rows)
     )
-    from openup_ompl.figures import MissingExtra
 
     plot: Path | None
     try:

@@ -13,10 +13,13 @@ import pinocchio as pin
 from openup_ompl import _toml
 from openup_ompl._resources import data_dir
 from openup_ompl.exceptions import ConfigError
-from openup_ompl.hand_law import DISTANCE_KINDS, HandLaw
+from openup_ompl.hand_law import TABLE_FIELDS, HandLaw
 from openup_ompl.robot import Robot, find_robot_file, load_robot
 
 SHAPES = ("box", "cylinder", "sphere")
+#: The hand-law fields a scene's ``[hand]`` may override (the fixed preshape is a planning
+#: option, not part of a scene).
+SCENE_LAW_FIELDS = tuple(name for name in TABLE_FIELDS if name != "fixed")
 #: The object's mass [kg] and Coulomb friction when the scene gives none (physics only).
 OBJECT_MASS = 0.1
 OBJECT_FRICTION = 0.6
@@ -170,37 +173,8 @@ def load_scene(path: str | Path, robot: Robot | None = None) -> Problem:
     hand = raw.get("hand", {})
     if not isinstance(hand, dict):
         raise ConfigError(f"{where}: hand", hand, "a [hand] table")
-    known = {"c", "b", "w", "u", "mga", "continuous", "open_arrival", "distance", "rotation_weight"}
-    unknown = sorted(set(hand) - known)
-    if unknown:
-        raise ConfigError(
-            f"{where}: hand.{unknown[0]}", hand[unknown[0]], f"one of {sorted(known)}"
-        )
-    n = robot.n_driven  # c, b, w name the driven hand joints; followers are derived
-    overrides: dict[str, object] = {}
-    for key in ("c", "b", "w"):
-        if key in hand:
-            overrides[key] = _toml.vector(hand[key], f"{where}: hand.{key}", n)
-    if "u" in hand:
-        overrides["u"] = _toml.number(hand["u"], f"{where}: hand.u", low=0.0, high=1.0)
-    if "mga" in hand:
-        overrides["mga"] = _toml.number(hand["mga"], f"{where}: hand.mga", low=1e-9, high=1.0)
-    if "rotation_weight" in hand:
-        overrides["rotation_weight"] = _toml.number(
-            hand["rotation_weight"], f"{where}: hand.rotation_weight", low=0.0
-        )
-    for key in ("continuous", "open_arrival"):
-        if key in hand:
-            if not isinstance(hand[key], bool):
-                raise ConfigError(f"{where}: hand.{key}", hand[key], "true or false")
-            overrides[key] = hand[key]
-    if "distance" in hand:
-        if hand["distance"] not in DISTANCE_KINDS:
-            raise ConfigError(
-                f"{where}: hand.distance", hand["distance"], f"one of {DISTANCE_KINDS}"
-            )
-        overrides["distance"] = hand["distance"]
-    law = robot.hand_law(**overrides)
+    _toml.check_keys(hand, SCENE_LAW_FIELDS, f"{where}: hand")
+    law = robot.hand_law(hand, where=f"{where}: hand")
     obstacles_raw = raw.get("obstacles", [])
     if not isinstance(obstacles_raw, list):
         raise ConfigError(f"{where}: obstacles", obstacles_raw, "an array of [[obstacles]] tables")

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 import openup_ompl as ou
-from openup_ompl.figures import MissingExtra
+from openup_ompl.exceptions import MissingExtra
 from openup_ompl.viz import PlanScene
 from openup_ompl.viz._geometry import box_mesh, decimate, revolution_mesh
 from openup_ompl.viz.storyboard import frame_rows

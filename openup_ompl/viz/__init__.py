@@ -3,7 +3,7 @@
 Everything is built from a plan file alone (CONTRACT §4) and the URDF and meshes it names.
 The optional extra ``viz`` (``pip install 'openup-ompl[viz]'``) brings what draws them:
 meshcat (its three.js viewer, inlined in the HTML) and matplotlib. They are imported only
-when a picture is made; a missing one raises :class:`~openup_ompl.figures.MissingExtra`.
+when a picture is made; a missing one raises :class:`~openup_ompl.exceptions.MissingExtra`.
 """
 
 from __future__ import annotations
@@ -11,8 +11,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from openup_ompl.viz._mpl import _pyplot
 from openup_ompl.viz._scene import PlanScene
 from openup_ompl.viz.html import HtmlOptions, write_html
+from openup_ompl.viz.law import plot_hand_law
 from openup_ompl.viz.storyboard import StoryboardOptions, write_storyboard
 
 
@@ -45,7 +47,6 @@ def show(
             loaded.
         MissingExtra: matplotlib or meshcat is not installed.
     """
-    from openup_ompl.figures import _pyplot, plot_hand_law
     from openup_ompl.viz.html import _meshcat
 
     # A missing extra is reported before anything is written.

@@ -127,24 +127,15 @@ class PlanScene:
             raise FrameNotFound(palm_frame, [f.name for f in model.frames])
 
         table = _key(data, "hand_law")
-        try:
-            law = HandLaw(
-                c=_key(table, "c", "hand_law"),
-                b=_key(table, "b", "hand_law"),
-                w=_key(table, "w", "hand_law"),
-                u=_key(table, "u", "hand_law"),
-                mga=_key(table, "mga", "hand_law"),
-                lower=model.lowerPositionLimit[hand_idx],
-                upper=model.upperPositionLimit[hand_idx],
-                continuous=bool(table.get("continuous", False)),
-                open_arrival=bool(table.get("open_arrival", False)),
-                distance=str(table.get("distance", "translation")),
-                rotation_weight=float(table.get("rotation_weight", 0.1)),
-                fixed=table.get("fixed"),
-            )
-        except ConfigError as error:
-            where = error.where if error.where.startswith("hand_law") else f"hand_law.{error.where}"
-            raise ConfigError(where, error.value, error.expected) from None
+        if not isinstance(table, dict):
+            raise ConfigError("hand_law", table, "a table with c, b, w, u, mga")
+        law = HandLaw.from_table(
+            table,
+            model.lowerPositionLimit[hand_idx],
+            model.upperPositionLimit[hand_idx],
+            "hand_law",
+            ignore=("start_palm_distance",),
+        )
         grasp_pose = _numbers(_key(data, "grasp_pose"), "grasp_pose", (7,))
         grasp = pin.XYZQUATToSE3(grasp_pose)
         path = _numbers(_key(data, "path"), "path", (-1, model.nq))

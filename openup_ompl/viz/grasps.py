@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from openup_ompl.viz._mpl import _pyplot, _save
 from openup_ompl.viz._scene import PlanScene
 from openup_ompl.viz.storyboard import (
     ARM_COLOR,
@@ -67,7 +68,6 @@ def write_grasp_figure(
     Raises:
         MissingExtra: matplotlib is not installed.
     """
-    from openup_ompl.figures import _pyplot, _save
     from openup_ompl.robustness import displaced, execute
 
     plt = _pyplot()

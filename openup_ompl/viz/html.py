@@ -24,8 +24,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from openup_ompl.exceptions import ConfigError
-from openup_ompl.figures import MissingExtra
+from openup_ompl.exceptions import ConfigError, MissingExtra
 from openup_ompl.viz._scene import PlanScene
 
 OBJECT_COLOR = 0xE8871E

@@ -20,6 +20,7 @@ import pinocchio as pin
 from openup_ompl.exceptions import ConfigError
 from openup_ompl.scene import Shape
 from openup_ompl.viz._geometry import Mesh, coal_mesh, decimate, placed, shape_mesh
+from openup_ompl.viz._mpl import _pyplot, _save
 from openup_ompl.viz._scene import PlanScene
 
 ARM_COLOR = (0.80, 0.82, 0.86)
@@ -252,7 +253,6 @@ def write_storyboard(
     Returns:
         The PNG's path.
     """
-    from openup_ompl.figures import _pyplot, _save
 
     plt = _pyplot()
     options = options or StoryboardOptions()
