@@ -19,20 +19,15 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
+from openup_ompl._model import is_prismatic
 from openup_ompl.hand_law import HandLaw
 from openup_ompl.robot import Robot
-
-_PRISMATIC = ("PX", "PY", "PZ", "PrismaticUnaligned")
-
-
-def _is_prismatic(joint: pin.JointModel) -> bool:
-    return any(joint.shortname().endswith(kind) for kind in _PRISMATIC)
 
 
 def _travel(model: pin.Model, joint_id: int) -> float:
     """Largest offset [m] a prismatic joint can add (0 for revolute joints)."""
     joint = model.joints[joint_id]
-    if not _is_prismatic(joint):
+    if not is_prismatic(joint):
         return 0.0
     q = joint.idx_q
     return float(max(abs(model.lowerPositionLimit[q]), abs(model.upperPositionLimit[q])))
@@ -74,7 +69,7 @@ def joint_reach(robot: Robot, joint_id: int) -> float:
 
 def joint_weight(robot: Robot, joint_id: int) -> float:
     """Displacement [m] of the farthest moved point per unit of this joint's motion."""
-    return 1.0 if _is_prismatic(robot.model.joints[joint_id]) else joint_reach(robot, joint_id)
+    return 1.0 if is_prismatic(robot.model.joints[joint_id]) else joint_reach(robot, joint_id)
 
 
 def distance_rates(robot: Robot, law: HandLaw, start_distance: float) -> np.ndarray:
@@ -101,7 +96,7 @@ def distance_rates(robot: Robot, law: HandLaw, start_distance: float) -> np.ndar
     # The palm moves by at most palm_reach per unit; with the weighted distance, each
     # revolute joint also turns it by at most one radian per radian.
     rotation = law.rotation_weight if law.distance == "weighted" else 0.0
-    revolute = np.array([0.0 if _is_prismatic(model.joints[j]) else 1.0 for j in arm_ids])
+    revolute = np.array([0.0 if is_prismatic(model.joints[j]) else 1.0 for j in arm_ids])
     return (palm_reach + rotation * revolute) / start_distance
 
 

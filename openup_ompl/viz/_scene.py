@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from openup_ompl._model import prismatic_joints
 from openup_ompl.exceptions import ConfigError, FrameNotFound, JointNotFound
 from openup_ompl.hand_law import GoalDistance, HandLaw
 from openup_ompl.plan import read_plan
@@ -42,13 +43,6 @@ def _numbers(value: Any, where: str, shape: tuple[int, ...]) -> np.ndarray:
         shown = value if isinstance(value, list) and len(value) <= 7 else "malformed"
         raise ConfigError(where, shown, expected)
     return array
-
-
-def prismatic_joints(model: pin.Model, names: list[str]) -> np.ndarray:
-    """Per joint name, whether it is prismatic (values in metres; else radians)."""
-    kinds = [model.joints[model.getJointId(n)].shortname() for n in names]
-    # Pinocchio names them JointModelPX, PY, PZ and JointModelPrismaticUnaligned.
-    return np.array([k.startswith("JointModelP") and "Planar" not in k for k in kinds])
 
 
 @dataclass(eq=False)

@@ -1,0 +1,215 @@
+"""URDF and SRDF handling: building Pinocchio models, composing an arm and a hand into
+one merged URDF (written to a content-hashed cache), reading ``<mimic>`` tags.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import warnings
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import coal
+import pinocchio as pin
+
+from openup_ompl._io import write_atomic
+from openup_ompl._model import frame_id
+from openup_ompl.exceptions import ConfigError
+from openup_ompl.robot_file import MimicSpec, MountSpec, RobotSpec
+
+
+def cache_dir() -> Path:
+    """Where the loader writes merged URDFs: ``$OPENUP_OMPL_CACHE``, else
+    ``$XDG_CACHE_HOME/openup-ompl``, else ``~/.cache/openup-ompl``."""
+    if os.environ.get("OPENUP_OMPL_CACHE"):
+        return Path(os.environ["OPENUP_OMPL_CACHE"]).expanduser()
+    root = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(root).expanduser() / "openup-ompl"
+
+
+def _write_cached(text: str, stem: str, suffix: str) -> Path:
+    """Write ``text`` to the cache under a content-hashed name (atomic, reused)."""
+    digest = hashlib.sha256(text.encode()).hexdigest()[:16]
+    path = cache_dir() / f"{stem}-{digest}{suffix}"
+    if not path.is_file():
+        write_atomic(path, text)
+    return path
+
+
+def _urdf_tree(path: Path, where: str) -> ET.Element:
+    try:
+        return ET.parse(path).getroot()
+    except (OSError, ET.ParseError) as error:
+        raise ConfigError(where, str(path), f"a readable URDF ({error})") from None
+
+
+def _urdf_mimic(root: ET.Element) -> tuple[MimicSpec, ...]:
+    """The ``<mimic>`` tags of a URDF, as follower specs."""
+    specs = []
+    for joint in root.iter("joint"):
+        tag = joint.find("mimic")
+        if tag is not None and joint.get("name") and tag.get("joint"):
+            specs.append(
+                MimicSpec(
+                    joint=str(joint.get("name")),
+                    leader=str(tag.get("joint")),
+                    multiplier=float(tag.get("multiplier", 1.0)),
+                    offset=float(tag.get("offset", 0.0)),
+                )
+            )
+    return tuple(specs)
+
+
+def _resolve_chains(mimic: tuple[MimicSpec, ...], driven: tuple[str, ...]) -> tuple[MimicSpec, ...]:
+    """URDF followers whose leader chain ends at a driven joint, composed to that joint."""
+    by_joint = {m.joint: m for m in mimic}
+    resolved = []
+    for spec in mimic:
+        leader, mult, off, seen = spec.leader, spec.multiplier, spec.offset, {spec.joint}
+        while leader not in driven and leader in by_joint and leader not in seen:
+            seen.add(leader)
+            up = by_joint[leader]
+            leader, mult, off = up.leader, mult * up.multiplier, mult * up.offset + off
+        if leader in driven:
+            resolved.append(MimicSpec(spec.joint, leader, mult, off))
+    return tuple(resolved)
+
+
+def _absolute_meshes(root: ET.Element, urdf: Path, package_dirs: list[str]) -> None:
+    """Rewrite ``package://`` and relative mesh file names as absolute paths."""
+    for mesh in root.iter("mesh"):
+        name = mesh.get("filename", "")
+        if name.startswith("package://"):
+            rest = name[len("package://") :]
+            for base in package_dirs:
+                if (Path(base) / rest).is_file():
+                    mesh.set("filename", str((Path(base) / rest).resolve()))
+                    break
+        elif name.startswith("file://"):
+            mesh.set("filename", name[len("file://") :])
+        elif name and not Path(name).is_absolute():
+            mesh.set("filename", str((urdf.parent / name).resolve()))
+
+
+def _prefix_names(root: ET.Element, prefix: str) -> None:
+    """Prefix every link and joint name (and the references to them) of a URDF or SRDF."""
+    if not prefix:
+        return
+    for element in root.iter():
+        if element.tag in ("link", "joint") and element.get("name"):
+            element.set("name", prefix + str(element.get("name")))
+        if element.tag in ("parent", "child") and element.get("link"):
+            element.set("link", prefix + str(element.get("link")))
+        if element.tag == "mimic" and element.get("joint"):
+            element.set("joint", prefix + str(element.get("joint")))
+        if element.tag == "disable_collisions":
+            for key in ("link1", "link2"):
+                element.set(key, prefix + str(element.get(key)))
+
+
+def _root_link(root: ET.Element) -> str:
+    children = {c.get("link") for c in root.iter("child")}
+    links = [
+        str(link.get("name")) for link in root.findall("link") if link.get("name") not in children
+    ]
+    return links[0]
+
+
+def _merged_urdf(
+    spec: RobotSpec, mount: MountSpec, arm_model: pin.Model, package_dirs: list[str]
+) -> tuple[Path, Path, Path | None]:
+    """Write the merged URDF (and the prefixed hand URDF/SRDF) to the cache.
+
+    Returns:
+        The merged URDF, the hand URDF to load, the hand SRDF to apply.
+    """
+    where = f"{spec.path.name}: mount"
+    arm = _urdf_tree(spec.urdf, f"{spec.path.name}: urdf")
+    hand = _urdf_tree(mount.urdf, f"{where}.urdf")
+    _prefix_names(hand, mount.prefix)
+    hand_urdf, hand_srdf = mount.urdf, mount.srdf
+    if mount.prefix:
+        hand_abs = ET.fromstring(ET.tostring(hand))
+        _absolute_meshes(hand_abs, mount.urdf, [*package_dirs, str(mount.urdf.parent)])
+        hand_urdf = _write_cached(ET.tostring(hand_abs, encoding="unicode"), "hand", ".urdf")
+        if mount.srdf is not None:
+            srdf = _urdf_tree(mount.srdf, f"{where}.srdf")
+            _prefix_names(srdf, mount.prefix)
+            hand_srdf = _write_cached(ET.tostring(srdf, encoding="unicode"), "hand", ".srdf")
+    _absolute_meshes(arm, spec.urdf, package_dirs)
+    _absolute_meshes(hand, mount.urdf, [*package_dirs, str(mount.urdf.parent)])
+    arm_names = {e.get("name") for e in arm if e.tag in ("link", "joint")}
+    clash = sorted(
+        str(e.get("name"))
+        for e in hand
+        if e.tag in ("link", "joint") and e.get("name") in arm_names
+    )
+    if clash:
+        raise ConfigError(f"{where}.prefix", mount.prefix, f"a prefix making {clash[0]!r} unique")
+    # The link the hand is fixed to: the frame itself if a link, else a joint's child link.
+    parent_frame = arm_model.frames[frame_id(arm_model, mount.frame)]
+    links = {e.get("name") for e in arm.findall("link")}
+    if mount.frame in links:
+        parent_link = mount.frame
+    else:
+        joint = next(j for j in arm.findall("joint") if j.get("name") == parent_frame.name)
+        parent_link = str(joint.find("child").get("link"))  # type: ignore[union-attr]
+    placement = pin.XYZQUATToSE3(mount.pose)
+    rpy = pin.rpy.matrixToRpy(placement.rotation)
+    fixed = ET.SubElement(arm, "joint", {"name": f"{mount.prefix}openup_mount", "type": "fixed"})
+    ET.SubElement(fixed, "parent", {"link": parent_link})
+    ET.SubElement(fixed, "child", {"link": _root_link(hand)})
+    ET.SubElement(
+        fixed,
+        "origin",
+        {
+            "xyz": " ".join(repr(float(x)) for x in placement.translation),
+            "rpy": " ".join(repr(float(x)) for x in rpy),
+        },
+    )
+    materials = {e.get("name") for e in arm.findall("material")}
+    for element in hand:
+        if element.tag in ("link", "joint") or (
+            element.tag == "material" and element.get("name") not in materials
+        ):
+            arm.append(element)
+    arm.set("name", spec.name)
+    merged = _write_cached(ET.tostring(arm, encoding="unicode"), spec.name, ".urdf")
+    return merged, hand_urdf, hand_srdf
+
+
+def _build(urdf: Path, package_dirs: list[str], where: str) -> tuple[pin.Model, pin.GeometryModel]:
+    try:
+        model = pin.buildModelFromUrdf(str(urdf))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            collision = pin.buildGeomFromUrdf(
+                model, str(urdf), pin.COLLISION, package_dirs=package_dirs
+            )
+    except (RuntimeError, ValueError) as error:
+        raise ConfigError(where, str(urdf), f"a loadable URDF ({error})") from None
+    return model, collision
+
+
+def _convex_hulls(geometry_model: pin.GeometryModel) -> None:
+    """Replace every mesh by its convex hull (qhull): conservative, about 2x faster."""
+    for geometry in geometry_model.geometryObjects:
+        shape = geometry.geometry
+        if isinstance(shape, coal.BVHModelBase):
+            shape.buildConvexHull(True, "Qt")
+            geometry.geometry = shape.convex
+
+
+def _merged_srdf(
+    spec: RobotSpec, mount: MountSpec, hand_srdf: Path | None, pairs: list[tuple[str, str]]
+) -> Path:
+    """Write one SRDF holding the arm's and the hand's disabled pairs plus ``pairs``."""
+    merged = ET.Element("robot", {"name": spec.name})
+    for srdf, where in ((spec.srdf, "srdf"), (hand_srdf, "mount.srdf")):
+        if srdf is not None:
+            root = _urdf_tree(srdf, f"{spec.path.name}: {where}")
+            merged.extend(root.iter("disable_collisions"))
+    for a, b in pairs:
+        ET.SubElement(merged, "disable_collisions", {"link1": a, "link2": b, "reason": "Never"})
+    return _write_cached(ET.tostring(merged, encoding="unicode"), spec.name, ".srdf")
