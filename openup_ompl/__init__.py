@@ -36,9 +36,9 @@ from openup_ompl.grasp import (
 )
 from openup_ompl.hand_law import GoalDistance, HandLaw, open_hand
 from openup_ompl.ik import IKOptions, IKSolver
-from openup_ompl.plan import Plan, read_plan
+from openup_ompl.plan import Plan, PlanFile, read_plan
 from openup_ompl.planners import IKBiRRT, IKBiRRTOptions
-from openup_ompl.planning import PLANNERS, GraspPlanningSetup
+from openup_ompl.planning import PLANNERS, GraspPlanningSetup, PlanningOptions
 from openup_ompl.robot import Robot, available_robots, load_robot
 from openup_ompl.robustness import RobustnessOptions, RobustnessResult, run_robustness
 from openup_ompl.scene import Problem, Shape, default_scene_path, load_scene
@@ -77,7 +77,9 @@ __all__ = [
     "MissingExtra",
     "OpenUpError",
     "Plan",
+    "PlanFile",
     "PlanningFailed",
+    "PlanningOptions",
     "Problem",
     "Robot",
     "RobotNotFound",

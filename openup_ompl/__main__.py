@@ -252,26 +252,45 @@ def _robustness_command(args: argparse.Namespace) -> int:
 
 
 def _benchmark_command(args: argparse.Namespace) -> int:
-    from openup_ompl.benchmark import benchmark_command
+    """Run the benchmark, then print the table and where the outputs are."""
+    from openup_ompl.benchmark import default_problems, markdown_table, run_benchmark
 
-    return benchmark_command(args)
+    problems = args.problems or default_problems()
+    result = run_benchmark(
+        problems,
+        args.planners,
+        args.out,
+        runs=args.runs,
+        time_limit=args.time,
+        fixed_hand=args.fixed_hand,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        seed=args.seed,
+        quiet=args.quiet,
+    )
+    print(markdown_table(result.rows))
+    print(f"OMPL logs in {result.logs}")
+    print(f"database (Planner Arena) written to {result.database}")
+    print(f"summary written to {result.summary}")
+    for plot in result.plots:
+        print(f"plot written to {plot}")
+    return 0
 
 
 def _plan(args: argparse.Namespace, scene: Path):  # type: ignore[no-untyped-def]
-    from openup_ompl.planning import GraspPlanningSetup
+    from openup_ompl.planning import GraspPlanningSetup, PlanningOptions
     from openup_ompl.scene import load_scene
 
-    problem = load_scene(scene)
-    setup = GraspPlanningSetup(
-        problem,
+    options = PlanningOptions(
         u=args.u,
         continuous=True if args.continuous else None,
         open_arrival=True if args.open_arrival else None,
+        planner=args.planner,
+        time_limit=args.time,
+        simplify=not args.no_simplify,
     )
-    plan = setup.solve(
-        time_limit=args.time, planner=args.planner, seed=args.seed, simplify=not args.no_simplify
-    )
-    return setup, plan
+    setup = GraspPlanningSetup(load_scene(scene), options)
+    return setup, setup.solve(seed=args.seed)
 
 
 def _summary(plan) -> str:  # type: ignore[no-untyped-def]

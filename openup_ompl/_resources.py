@@ -14,12 +14,14 @@ _PACKAGE_DIR = Path(__file__).resolve().parent
 
 
 def data_dir(kind: str) -> Path:
-    """Directory of shipped ``robots`` or ``scenes``.
+    """Directory of shipped ``robots``, ``scenes`` or (benchmark) ``problems``.
 
     A wheel carries them under ``openup_ompl/_data/``; an editable install or a source
-    checkout finds them at the repository root, beside the package.
+    checkout finds them in the repository, beside the package (``problems`` under
+    ``benchmarks/``).
     """
-    for candidate in (_PACKAGE_DIR / "_data" / kind, _PACKAGE_DIR.parent / kind):
+    source = _PACKAGE_DIR.parent / ("benchmarks" if kind == "problems" else "") / kind
+    for candidate in (_PACKAGE_DIR / "_data" / kind, source):
         if candidate.is_dir():
             return candidate
     raise FileNotFoundError(f"openup-ompl's {kind}/ directory is missing from this install")

@@ -28,9 +28,14 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from ompl import tools as ot
 
-from openup_ompl.exceptions import ConfigError, MissingExtra, OpenUpError
+from openup_ompl import _toml
+from openup_ompl._resources import data_dir
+from openup_ompl.exceptions import ConfigError, InvalidProblem, MissingExtra, OpenUpError
 from openup_ompl.executor import Task, load_records, run_tasks
+from openup_ompl.planning import GraspPlanningSetup, PlanningOptions, check_planner
+from openup_ompl.scene import load_scene
 from openup_ompl.viz._mpl import _pyplot, _save
 
 __all__ = [
@@ -65,12 +70,13 @@ EXTRA_COLUMNS: dict[str, str] = {
 }
 
 
-#: The problem suites of the source tree, one directory per robot.
-PROBLEMS_ROOT = Path(__file__).resolve().parent.parent / "benchmarks" / "problems"
+#: The shipped problem suites, one directory per robot (``benchmarks/problems`` of the
+#: source tree, package data in a wheel).
+PROBLEMS_ROOT = data_dir("problems")
 
 
 def default_problems_dir(robot: str = "panda") -> Path:
-    """``benchmarks/problems/<robot>`` of the source tree."""
+    """The shipped suite of ``robot``: ``benchmarks/problems/<robot>``."""
     return PROBLEMS_ROOT / robot
 
 
@@ -82,8 +88,6 @@ def default_problems() -> list[Path]:
 def problem_id(path: Path) -> str:
     """``<robot>.<scene>``: the problem's name in task keys, the database and the tables
     (the suites of different robots use the same scene names)."""
-    from openup_ompl import _toml
-
     robot = _toml.read_toml(Path(path), "scene file").get("robot", "")
     return f"{Path(str(robot)).stem}.{Path(path).stem}"
 
@@ -113,15 +117,9 @@ def find_problems(paths: Sequence[str | Path]) -> list[Path]:
 
 
 def _planner_names(planners: Sequence[str]) -> list[str]:
-    from openup_ompl.planning import PLANNERS
-
-    names = [p.lower() for p in planners]
-    for name in names:
-        if name not in PLANNERS:
-            raise ConfigError("planner", name, f"one of {list(PLANNERS)}")
-    if not names:
+    if not planners:
         raise ConfigError("planners", list(planners), "at least one planner")
-    return names
+    return [check_planner(p) for p in planners]
 
 
 def make_tasks(
@@ -180,16 +178,11 @@ def benchmark_run(
         The record: OMPL's log text (``log``), OMPL's run properties (``time``,
         ``solved``, ``length``, ...), and the extra counters of :data:`EXTRA_COLUMNS`.
     """
-    from ompl import tools as ot
-
-    from openup_ompl.exceptions import InvalidProblem
-    from openup_ompl.planning import GraspPlanningSetup
-    from openup_ompl.scene import load_scene
-
     name = problem_id(Path(problem))
     record: dict[str, Any] = {"problem": name, "planner": planner, "hand": hand, "seed": seed}
     try:
-        setup = GraspPlanningSetup(load_scene(problem), fixed_hand="w" if hand == "fixed" else None)
+        options = PlanningOptions(fixed_hand="w" if hand == "fixed" else None)
+        setup = GraspPlanningSetup(load_scene(problem), options)
     except InvalidProblem as error:
         # A setup that cannot start is a failed run with no OMPL log.
         return {**record, "error": str(error), "solved": False, "time": time_limit}
@@ -425,27 +418,3 @@ def run_benchmark(
         except MissingExtra as error:
             print(f"no plots: {error}", file=sys.stderr)
     return BenchmarkResult(db, out / "logs", summary, drawn, rows, records)
-
-
-def benchmark_command(args: Any) -> int:
-    """``openup-ompl benchmark``: run, then print the table and where the outputs are."""
-    problems = args.problems or default_problems()
-    result = run_benchmark(
-        problems,
-        args.planners,
-        args.out,
-        runs=args.runs,
-        time_limit=args.time,
-        fixed_hand=args.fixed_hand,
-        workers=args.workers,
-        scheduler=args.scheduler,
-        seed=args.seed,
-        quiet=args.quiet,
-    )
-    print(markdown_table(result.rows))
-    print(f"OMPL logs in {result.logs}")
-    print(f"database (Planner Arena) written to {result.database}")
-    print(f"summary written to {result.summary}")
-    for plot in result.plots:
-        print(f"plot written to {plot}")
-    return 0

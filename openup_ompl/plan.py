@@ -1,4 +1,5 @@
-"""Plans: the result of a solve, and the plan file (CONTRACT §4)."""
+"""Plans: the result of a solve, and the plan file (README, "Plan file"): its writer
+(:meth:`Plan.save`) and its reader (:class:`PlanFile`), side by side."""
 
 from __future__ import annotations
 
@@ -9,11 +10,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pinocchio as pin
 
 from openup_ompl._io import write_atomic
-from openup_ompl.exceptions import ConfigError
+from openup_ompl._model import frame_id
+from openup_ompl.exceptions import ConfigError, JointNotFound
 from openup_ompl.hand_law import HandLaw
-from openup_ompl.scene import Problem
+from openup_ompl.scene import Problem, Shape
 
 PLAN_FORMAT = "openup-plan/1"
 
@@ -63,7 +66,7 @@ class Plan:
         return self.path[:, self.problem.robot.hand_idx]
 
     def to_dict(self) -> dict[str, Any]:
-        """The plan file's contents (CONTRACT §4)."""
+        """The plan file's contents (README, "Plan file")."""
         robot = self.problem.robot
         spec = robot.spec
         scene_object = self.problem.object
@@ -96,7 +99,7 @@ class Plan:
         }
 
     def save(self, path: str | Path) -> Path:
-        """Write the plan file (JSON, CONTRACT §4); returns its path."""
+        """Write the plan file (JSON, README "Plan file"), atomically; returns its path."""
         path = Path(path)
         if not np.all(np.isfinite(self.path)):
             raise ConfigError("plan path", "non-finite values", "a finite path")
@@ -127,3 +130,177 @@ def read_plan(path: str | Path) -> dict[str, Any]:
     if not all(math.isfinite(x) for row in rows for x in row):
         raise ConfigError(f"{path.name}: path", "non-finite values", "finite joint values")
     return data
+
+
+def _key(table: Any, key: str, where: str = "") -> Any:
+    """``table[key]``, or a ConfigError naming the missing ``where.key``."""
+    name = f"{where}.{key}" if where else key
+    if not isinstance(table, dict) or key not in table:
+        raise ConfigError(name, None, f"a plan file with {name}")
+    return table[key]
+
+
+def _numbers(value: Any, where: str, shape: tuple[int, ...]) -> np.ndarray:
+    """``value`` as a finite float array of ``shape`` (-1: any length), or a ConfigError."""
+    try:
+        array = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        array = np.zeros(0)
+    fits = array.ndim == len(shape) and all(
+        n in (-1, m) for n, m in zip(shape, array.shape, strict=True)
+    )
+    if not (fits and array.size and np.all(np.isfinite(array))):
+        expected = "[x, y, z, qx, qy, qz, qw]" if shape == (7,) else f"rows of {shape[-1]} values"
+        shown = value if isinstance(value, list) and len(value) <= 7 else "malformed"
+        raise ConfigError(where, shown, expected)
+    return array
+
+
+def _urdf_model(urdf: str) -> pin.Model:
+    if not Path(urdf).is_file():
+        raise ConfigError("robot.urdf", urdf, "an existing URDF file")
+    try:
+        return pin.buildModelFromUrdf(urdf)
+    except (RuntimeError, ValueError) as error:
+        raise ConfigError("robot.urdf", urdf, f"a loadable URDF ({error})") from None
+
+
+@dataclass(frozen=True, eq=False)
+class PlanFile:
+    """A plan as a plan file holds it, typed and checked: robot, law, shapes, path.
+
+    Built from a plan file alone and the URDF it names (:meth:`read`), so that a plan
+    can be replayed or drawn without its scene or robot TOML; or from a :class:`Plan` in
+    memory (:meth:`from_plan`), with the same kinematic model.
+
+    Attributes:
+        name: A short name for titles (the plan file's stem).
+        planner: The planner's name.
+        seed: Seed of the run, or ``None``.
+        status: OMPL's planner status, as text.
+        urdf: The URDF of the whole robot.
+        package_dirs: Directories resolving its ``package://`` mesh URIs.
+        model: Pinocchio model built from :attr:`urdf`.
+        hand_joints: Hand joint names, in the law's order.
+        hand_idx: Indices in ``q`` of the hand joints, in the law's order.
+        palm_frame_id: Pinocchio frame index of the palm frame.
+        law: The hand law the plan followed (limits from :attr:`model`).
+        grasp_pose: Palm frame target ``[x, y, z, qx, qy, qz, qw]`` (world frame).
+        path: ``(N, nq)`` full configurations.
+        obstacles: The scene's obstacles.
+        object: The object to grasp, or ``None``.
+    """
+
+    name: str
+    planner: str
+    seed: int | None
+    status: str
+    urdf: Path
+    package_dirs: tuple[str, ...]
+    model: pin.Model
+    hand_joints: tuple[str, ...]
+    hand_idx: np.ndarray
+    palm_frame_id: int
+    law: HandLaw
+    grasp_pose: np.ndarray
+    path: np.ndarray
+    obstacles: tuple[Shape, ...]
+    object: Shape | None
+
+    @classmethod
+    def read(cls, path: str | Path) -> PlanFile:
+        """Read and check a plan file (:func:`read_plan`) and load its robot's model.
+
+        Raises:
+            ConfigError: The file is not a readable plan, a key is missing or holds a bad
+                value, or its URDF cannot be loaded.
+            JointNotFound, FrameNotFound: The plan names a joint or frame its URDF lacks.
+        """
+        path = Path(path)
+        return cls.from_dict(read_plan(path), path.stem)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any], name: str = "plan") -> PlanFile:
+        """Check a plan file's contents (as :meth:`Plan.to_dict` gives them) and load
+        its robot's model (see :meth:`read`)."""
+        robot = _key(data, "robot")
+        urdf = str(_key(robot, "urdf", "robot"))
+        model = _urdf_model(urdf)
+        names = [model.names[i] for i in range(1, model.njoints) if model.joints[i].nq > 0]
+        if list(_key(robot, "joint_names", "robot")) != names:
+            raise ConfigError("robot.joint_names", robot["joint_names"], f"{names} (the URDF's)")
+        hand_joints = tuple(_key(robot, "hand_joints", "robot"))
+        for joint in hand_joints:
+            if not model.existJointName(joint):
+                raise JointNotFound(joint, names)
+        hand_idx = np.array([model.joints[model.getJointId(n)].idx_q for n in hand_joints])
+        palm_frame_id = frame_id(model, str(_key(robot, "palm_frame", "robot")))
+        table = _key(data, "hand_law")
+        if not isinstance(table, dict):
+            raise ConfigError("hand_law", table, "a table with c, b, w, u, mga")
+        law = HandLaw.from_table(
+            table,
+            model.lowerPositionLimit[hand_idx],
+            model.upperPositionLimit[hand_idx],
+            "hand_law",
+            ignore=("start_palm_distance",),
+        )
+        scene = _key(data, "scene")
+        if not isinstance(scene, dict):
+            raise ConfigError("scene", scene, "a table with the object and obstacles")
+        obstacles = tuple(
+            Shape.from_table(table, f"scene.obstacles[{i}]")
+            for i, table in enumerate(scene.get("obstacles") or [])
+        )
+        raw_object = scene.get("object")
+        return cls(
+            name=name,
+            planner=str(data.get("planner", "plan")),
+            seed=data.get("seed"),
+            status=str(data.get("status", "")),
+            urdf=Path(urdf),
+            package_dirs=tuple(str(p) for p in robot.get("package_dirs") or []),
+            model=model,
+            hand_joints=hand_joints,
+            hand_idx=hand_idx.astype(np.intp),
+            palm_frame_id=palm_frame_id,
+            law=law,
+            grasp_pose=_numbers(_key(data, "grasp_pose"), "grasp_pose", (7,)),
+            path=_numbers(_key(data, "path"), "path", (-1, model.nq)),
+            obstacles=obstacles,
+            object=None
+            if not raw_object
+            else Shape.from_table(raw_object, "scene.object", is_object=True),
+        )
+
+    @classmethod
+    def from_plan(cls, plan: Plan, name: str = "plan") -> PlanFile:
+        """What the plan file of ``plan`` would hold, without writing and re-reading it:
+        its law, shapes and path as they are; the model built from the robot's URDF."""
+        robot = plan.problem.robot
+        model = _urdf_model(str(robot.urdf))
+        hand_idx = np.array(
+            [model.joints[model.getJointId(n)].idx_q for n in robot.hand_joints], dtype=np.intp
+        )
+        return cls(
+            name=name,
+            planner=plan.planner,
+            seed=plan.seed,
+            status=plan.status,
+            urdf=Path(str(robot.urdf)),
+            package_dirs=tuple(str(p) for p in robot.package_dirs),
+            model=model,
+            hand_joints=tuple(robot.hand_joints),
+            hand_idx=hand_idx,
+            palm_frame_id=frame_id(model, robot.spec.palm_frame),
+            law=plan.law,
+            grasp_pose=plan.problem.grasp_pose,
+            path=plan.path,
+            obstacles=tuple(plan.problem.obstacles),
+            object=plan.problem.object,
+        )
+
+    @property
+    def grasp(self) -> pin.SE3:
+        """Grasp pose of the palm frame as a Pinocchio ``SE3`` (world frame)."""
+        return pin.XYZQUATToSE3(self.grasp_pose)

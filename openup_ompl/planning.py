@@ -8,9 +8,11 @@ that accepts sampleable goals can be plugged into :attr:`GraspPlanningSetup.simp
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -69,28 +71,107 @@ def _hand_override(value: str | Sequence[float] | None, law: HandLaw) -> np.ndar
     return np.asarray(value, dtype=float)
 
 
-class GraspPlanningSetup:
-    """A reach-to-grasp problem on OMPL: state space, coupled checks, IK goal, planners.
+def check_planner(name: str) -> str:
+    """``name`` lowered if it is one of :data:`PLANNERS`, else a :class:`ConfigError` that
+    says why a known but unsupported OMPL planner is left out."""
+    key = name.lower() if isinstance(name, str) else name
+    if key not in PLANNERS:
+        why = f" ({_UNSUPPORTED[key]})" if key in _UNSUPPORTED else ""
+        raise ConfigError("planner", name, f"one of {list(PLANNERS)}{why}")
+    return str(key)
 
-    Args:
-        problem: The loaded scene (:func:`~openup_ompl.scene.load_scene`).
-        u: Pose uncertainty in [0, 1] overriding the scene's.
-        continuous: Use the law without the jump at ``mga``.
+
+def check_time_limit(time_limit: float, where: str = "time_limit") -> float:
+    """``time_limit`` [s] if it is a positive finite number, else a :class:`ConfigError`."""
+    if not (
+        isinstance(time_limit, (int, float))
+        and not isinstance(time_limit, bool)
+        and math.isfinite(time_limit)
+        and time_limit > 0
+    ):
+        raise ConfigError(where, time_limit, "a positive number of seconds")
+    return float(time_limit)
+
+
+@dataclass(frozen=True)
+class PlanningOptions:
+    """How to plan one problem, apart from the algorithm (one frozen object, validated once).
+
+    Attributes:
+        u: Pose uncertainty in [0, 1] overriding the scene's (``None``: the scene's).
+        continuous: Use the law without the jump at ``mga`` (``None``: the scene's).
         open_arrival: Use the law that reaches the grasp opened by ``u`` (an extension,
-            see :func:`~openup_ompl.hand_law.open_hand`).
+            see :func:`~openup_ompl.hand_law.open_hand`; ``None``: the scene's).
         fixed_hand: The classical baseline: keep the hand at this configuration (``"c"``,
             ``"b"``, ``"w"`` or joint values) for the whole reach instead of the law.
         resolution: Motion-check resolution [m]: no robot point moves more between two
             checked states (see :data:`~openup_ompl.validity.DEFAULT_RESOLUTION`).
         padding: Margin [m] around obstacles and object (default ``resolution / 2``,
             which makes motion checks exact for the unpadded scene).
-        ik_options: IK settings.
-        ikbirrt_options: IKBiRRT settings (its seed is set by :meth:`solve`).
+        planner: Planner name, one of :data:`PLANNERS` (what :meth:`GraspPlanningSetup.solve`
+            uses when given none).
+        time_limit: Planning time [s] (idem).
+        simplify: Shorten the path with OMPL's ``PathSimplifier`` (idem).
+        simplify_rounds: Rounds of simplification at most.
+        ik_options: IK settings (``None``: :class:`~openup_ompl.ik.IKOptions` defaults).
+        ikbirrt_options: IKBiRRT settings (its seed is set by the run).
         max_goal_samples: ``maxSampleCount()`` of the goal region.
         planner_range: ``setRange`` [rad, joint-space norm] of the OMPL planners made by
             name. OMPL's default (20 % of the space's extent, 2.6 rad on the Panda) measured
             2-8x slower in median solve time on the shipped and test scenes: long coupled
             motions mostly end in collision.
+    """
+
+    u: float | None = None
+    continuous: bool | None = None
+    open_arrival: bool | None = None
+    fixed_hand: str | Sequence[float] | None = None
+    resolution: float = DEFAULT_RESOLUTION  # [m]
+    padding: float | None = None  # [m]
+    planner: str = "ikbirrt"
+    time_limit: float = 5.0  # [s]
+    simplify: bool = False
+    simplify_rounds: int = 3
+    ik_options: IKOptions | None = None
+    ikbirrt_options: IKBiRRTOptions | None = None
+    max_goal_samples: int = 25
+    planner_range: float = 0.4  # [rad]
+
+    def __post_init__(self) -> None:
+        if self.u is not None and not (
+            isinstance(self.u, (int, float)) and not isinstance(self.u, bool) and 0 <= self.u <= 1
+        ):
+            raise ConfigError("u", self.u, "a number in [0, 1]")
+        for name in ("continuous", "open_arrival", "simplify"):
+            value = getattr(self, name)
+            if value is not None and not isinstance(value, bool):
+                raise ConfigError(name, value, "true or false")
+        if not (isinstance(self.resolution, (int, float)) and 0 < self.resolution < math.inf):
+            raise ConfigError("resolution", self.resolution, "a positive length [m]")
+        if self.padding is not None and not (
+            isinstance(self.padding, (int, float)) and 0 <= self.padding < math.inf
+        ):
+            raise ConfigError("padding", self.padding, "a length >= 0 [m]")
+        check_planner(self.planner)
+        check_time_limit(self.time_limit)
+        if not (isinstance(self.simplify_rounds, int) and self.simplify_rounds >= 0):
+            raise ConfigError("simplify_rounds", self.simplify_rounds, "an integer >= 0")
+        if not (isinstance(self.max_goal_samples, int) and self.max_goal_samples >= 1):
+            raise ConfigError("max_goal_samples", self.max_goal_samples, "an integer >= 1")
+        if not (isinstance(self.planner_range, (int, float)) and 0 < self.planner_range < math.inf):
+            raise ConfigError("planner_range", self.planner_range, "a positive step [rad]")
+
+
+class GraspPlanningSetup:
+    """A reach-to-grasp problem on OMPL: state space, coupled checks, IK goal, planners.
+
+    Args:
+        problem: The loaded scene (:func:`~openup_ompl.scene.load_scene`).
+        options: The :class:`PlanningOptions` (a number is taken as ``u``, the old
+            positional form).
+        **changes: Fields of :class:`PlanningOptions` overriding ``options`` (the keyword
+            form, e.g. ``GraspPlanningSetup(problem, u=0.3, fixed_hand="w")``); ``None``
+            values are ignored.
 
     Raises:
         ConfigError: A bad option.
@@ -106,32 +187,56 @@ class GraspPlanningSetup:
     def __init__(
         self,
         problem: Problem,
-        u: float | None = None,
+        options: PlanningOptions | float | None = None,
         *,
+        u: float | None = None,
         continuous: bool | None = None,
         open_arrival: bool | None = None,
         fixed_hand: str | Sequence[float] | None = None,
-        resolution: float = DEFAULT_RESOLUTION,
+        resolution: float | None = None,
         padding: float | None = None,
         ik_options: IKOptions | None = None,
         ikbirrt_options: IKBiRRTOptions | None = None,
-        max_goal_samples: int = 25,
-        planner_range: float = 0.4,
+        max_goal_samples: int | None = None,
+        planner_range: float | None = None,
     ) -> None:
-        if not (isinstance(planner_range, (int, float)) and 0 < planner_range < math.inf):
-            raise ConfigError("planner_range", planner_range, "a positive step [rad]")
-        self.planner_range = float(planner_range)
+        if options is None:
+            options = PlanningOptions()
+        elif not isinstance(options, PlanningOptions):
+            options = PlanningOptions(u=options)
+        changes: dict[str, Any] = {
+            "u": u,
+            "continuous": continuous,
+            "open_arrival": open_arrival,
+            "fixed_hand": fixed_hand,
+            "resolution": resolution,
+            "padding": padding,
+            "ik_options": ik_options,
+            "ikbirrt_options": ikbirrt_options,
+            "max_goal_samples": max_goal_samples,
+            "planner_range": planner_range,
+        }
+        options = dataclasses.replace(
+            options, **{k: v for k, v in changes.items() if v is not None}
+        )
+        self.options = options
+        self.planner_range = float(options.planner_range)
         self.problem = problem
         robot = problem.robot
+        law_changes = {
+            k: v
+            for k, v in (
+                ("u", options.u),
+                ("continuous", options.continuous),
+                ("open_arrival", options.open_arrival),
+            )
+            if v is not None
+        }
         self.law = problem.hand_law.with_options(
-            **{
-                k: v
-                for k, v in (("u", u), ("continuous", continuous), ("open_arrival", open_arrival))
-                if v is not None
-            },
-            fixed=_hand_override(fixed_hand, problem.hand_law),
+            **law_changes, fixed=_hand_override(options.fixed_hand, problem.hand_law)
         )
-        self.ikbirrt_options = ikbirrt_options or IKBiRRTOptions()
+        self.ikbirrt_options = options.ikbirrt_options or IKBiRRTOptions()
+        resolution = options.resolution
         dof = robot.arm_idx.size
         space = ob.RealVectorStateSpace(dof)
         bounds = ob.RealVectorBounds(dof)
@@ -143,7 +248,9 @@ class GraspPlanningSetup:
         self.simple_setup = og.SimpleSetup(space)
         si = self.simple_setup.getSpaceInformation()
         self.space_information = si
-        self.checker = CoupledChecker(problem, self.law, resolution=resolution, padding=padding)
+        self.checker = CoupledChecker(
+            problem, self.law, resolution=resolution, padding=options.padding
+        )
         self.validity_checker = CoupledValidityChecker(si, self.checker)
         self.motion_validator = CoupledMotionValidator(si, self.checker)
         self.simple_setup.setStateValidityChecker(self.validity_checker)
@@ -168,7 +275,7 @@ class GraspPlanningSetup:
         start[0:dof] = problem.start.tolist()
         self.simple_setup.setStartState(start)
 
-        self.ik = IKSolver(robot, problem.grasp, ik_options)
+        self.ik = IKSolver(robot, problem.grasp, options.ik_options)
         self._goal_rng_seed = 0
         self.goal = GraspGoal(self.checker, self.ik, np.random.default_rng(self._goal_rng_seed))
         start_distance = self.goal.distance(problem.start)
@@ -176,24 +283,20 @@ class GraspPlanningSetup:
             raise InvalidProblem(
                 f"start is already at the grasp pose (task-space distance {start_distance:.2e} m)"
             )
-        self.goal_region = IKGoalRegion(si, self.goal, max_samples=max_goal_samples)
+        self.goal_region = IKGoalRegion(si, self.goal, max_samples=options.max_goal_samples)
         self._initial_solutions = list(self.goal.solutions)
         self.simple_setup.setGoal(self.goal_region)
 
     def make_planner(self, name: str, seed: int | None = None) -> ob.Planner:
         """A planner by name (see :data:`PLANNERS`) on this setup's space information."""
-        key = name.lower()
+        key = check_planner(name)
         si = self.space_information
         if key == "ikbirrt":
-            options = IKBiRRTOptions(**{**self.ikbirrt_options.__dict__, "seed": seed})
-            return IKBiRRT(si, options)
-        if key in OMPL_PLANNERS:
-            planner = OMPL_PLANNERS[key](si)
-            if hasattr(planner, "setRange"):
-                planner.setRange(self.planner_range)
-            return planner
-        why = f" ({_UNSUPPORTED[key]})" if key in _UNSUPPORTED else ""
-        raise ConfigError("planner", name, f"one of {list(PLANNERS)}{why}")
+            return IKBiRRT(si, dataclasses.replace(self.ikbirrt_options, seed=seed))
+        planner = OMPL_PLANNERS[key](si)
+        if hasattr(planner, "setRange"):
+            planner.setRange(self.planner_range)
+        return planner
 
     def reseed(self, seed: int | None) -> None:
         """Restart the run's random generators (IK restarts, goal sampling) from ``seed``."""
@@ -202,18 +305,18 @@ class GraspPlanningSetup:
 
     def solve(
         self,
-        time_limit: float = 5.0,
-        planner: str | ob.Planner = "ikbirrt",
+        time_limit: float | None = None,
+        planner: str | ob.Planner | None = None,
         seed: int | None = None,
-        simplify: bool = False,
-        simplify_rounds: int = 3,
+        simplify: bool | None = None,
+        simplify_rounds: int | None = None,
     ) -> Plan:
         """Plan from the start to the grasp; the plan's hand follows the law everywhere.
 
         Args:
-            time_limit: Planning time [s].
+            time_limit: Planning time [s] (``None``: the options').
             planner: A name from :data:`PLANNERS` or an ``ob.Planner`` built on
-                :attr:`space_information`.
+                :attr:`space_information` (``None``: the options').
             seed: Seeds IK and goal sampling, and IKBiRRT entirely (same seed, same
                 path). OMPL's own planners draw from OMPL's process-wide generator, which
                 only ``ompl.util.RNG.setSeed`` before any OMPL object fixes (the command
@@ -224,16 +327,17 @@ class GraspPlanningSetup:
                 by rounds, not time, so that it is repeatable; its random draws come from
                 OMPL's process-wide generator (see ``seed``).
             simplify_rounds: Rounds of simplification at most (stops early when a round
-                changes nothing).
+                changes nothing). ``simplify`` and this default to the options'.
 
         Raises:
             ConfigError: Bad time limit or planner name.
             PlanningFailed: No exact solution in time (the message gives OMPL's status).
         """
-        if not (
-            isinstance(time_limit, (int, float)) and math.isfinite(time_limit) and time_limit > 0
-        ):
-            raise ConfigError("time_limit", time_limit, "a positive number of seconds")
+        options = self.options
+        time_limit = options.time_limit if time_limit is None else check_time_limit(time_limit)
+        planner = options.planner if planner is None else planner
+        simplify = options.simplify if simplify is None else simplify
+        rounds = options.simplify_rounds if simplify_rounds is None else simplify_rounds
         ss = self.simple_setup
         if isinstance(planner, ob.Planner):
             instance = planner
@@ -255,7 +359,7 @@ class GraspPlanningSetup:
         if status != ob.PlannerStatus.EXACT_SOLUTION or not ss.haveExactSolutionPath():
             raise PlanningFailed(status_text, name, time_limit)
         if simplify:
-            self.simplify(ss.getSolutionPath(), simplify_rounds)
+            self.simplify(ss.getSolutionPath(), rounds)
         dof = self.problem.robot.arm_idx.size
         waypoints = np.array([s[0:dof] for s in ss.getSolutionPath().getStates()])
         stats: dict[str, Any] = {

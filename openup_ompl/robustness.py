@@ -19,12 +19,13 @@ file. A planning failure makes every trial of its task a failure (not a collisio
 
 Outputs (:func:`run_robustness`): ``robustness.csv`` (one row per ``(u, dx, dy, yaw)``
 cell), ``robustness.md`` (tables), ``robustness.png`` (success rate against error, one
-line per ``u``) and ``trials.json`` (every trial).
+line per ``u``) and ``trials.json`` (every trial), formatted by
+:mod:`~openup_ompl.robustness_report`; ``grasps.png`` (the paper's Fig. 1) drawn by
+:mod:`~openup_ompl.viz.grasps` from :func:`figure_trials`.
 """
 
 from __future__ import annotations
 
-import csv
 import dataclasses
 import hashlib
 import json
@@ -33,21 +34,34 @@ import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
 from openup_ompl._resources import data_dir
-from openup_ompl.exceptions import ConfigError, InvalidProblem, MissingExtra
+from openup_ompl.collision import CollisionWorld
+from openup_ompl.exceptions import ConfigError, InvalidProblem, MissingExtra, PlanningFailed
 from openup_ompl.executor import Task, load_records, run_tasks
-from openup_ompl.scene import Problem, Shape
-from openup_ompl.viz._mpl import _pyplot, _save
-
-if TYPE_CHECKING:
-    from openup_ompl.grasp import GraspResult
-    from openup_ompl.plan import Plan
-    from openup_ompl.planning import GraspPlanningSetup
+from openup_ompl.grasp import (
+    GraspResult,
+    HandCloser,
+    check_torsion,
+    closed_configuration,
+    enclosed,
+    force_closure,
+    object_axis,
+)
+from openup_ompl.plan import Plan
+from openup_ompl.planning import (
+    GraspPlanningSetup,
+    PlanningOptions,
+    check_planner,
+    check_time_limit,
+)
+from openup_ompl.robustness_report import markdown_tables, plot_robustness, write_csv
+from openup_ompl.scene import Problem, Shape, load_scene
+from openup_ompl.viz.grasps import write_grasp_figure
 
 __all__ = [
     "CSV_COLUMNS",
@@ -58,6 +72,7 @@ __all__ = [
     "default_robustness_scene",
     "displaced",
     "execute",
+    "figure_trials",
     "make_tasks",
     "markdown_tables",
     "perturbations",
@@ -120,8 +135,6 @@ class RobustnessOptions:
     torsion: float | None = None
 
     def __post_init__(self) -> None:
-        from openup_ompl.planning import PLANNERS
-
         def values(name: str, raw: Sequence[float], ok: Any, expected: str) -> tuple[float, ...]:
             items = tuple(float(x) for x in raw)
             if not items:
@@ -155,16 +168,22 @@ class RobustnessOptions:
             raise ConfigError("seeds", self.seeds, "an integer >= 1")
         if not (isinstance(self.first_seed, int) and 0 <= self.first_seed < 2**31 - self.seeds):
             raise ConfigError("seed", self.first_seed, "an integer seed in [0, 2^31)")
-        if self.planner.lower() not in PLANNERS:
-            raise ConfigError("planner", self.planner, f"one of {list(PLANNERS)}")
-        if not (math.isfinite(self.time_limit) and self.time_limit > 0):
-            raise ConfigError("time", self.time_limit, "a positive number of seconds")
+        check_planner(self.planner)
+        check_time_limit(self.time_limit, "time")
         if not (math.isfinite(self.friction) and self.friction >= 0):
             raise ConfigError("friction", self.friction, "a coefficient >= 0")
         if self.torsion is not None:
-            from openup_ompl.grasp import check_torsion
-
             check_torsion(self.torsion)
+
+    def planning(self, u: float) -> PlanningOptions:
+        """How each plan of the sweep is made: at ``u``, simplified."""
+        return PlanningOptions(
+            u=u,
+            open_arrival=self.open_arrival,
+            planner=self.planner,
+            time_limit=self.time_limit,
+            simplify=True,
+        )
 
 
 def perturbations(
@@ -206,9 +225,6 @@ def check_scene(scene: str | Path) -> Problem:
         InvalidProblem: No ``[object]``, a robot without hand joints, or a hand that has
             no joint to close.
     """
-    from openup_ompl.grasp import closed_configuration
-    from openup_ompl.scene import load_scene
-
     problem = load_scene(scene)
     if problem.object is None:
         raise InvalidProblem(f"{Path(scene).name}: the scene has no [object] to grasp")
@@ -270,16 +286,16 @@ def robustness_run(
         has ``dx, dy, yaw, collision, collision_row, pairs, force_closure, enclosed,
         contacts, fingers, success``.
     """
-    from openup_ompl.exceptions import PlanningFailed
-    from openup_ompl.planning import GraspPlanningSetup
-
     problem = check_scene(scene)
     if torsion is None:
         torsion = problem.robot.spec.torsion
     record: dict[str, Any] = {"u": u, "seed": seed, "planned": False, "error": None}
     try:
-        setup = GraspPlanningSetup(problem, u=u, open_arrival=open_arrival)
-        plan = setup.solve(time_limit=time_limit, planner=planner, seed=seed, simplify=True)
+        options = PlanningOptions(
+            u=u, open_arrival=open_arrival, planner=planner, time_limit=time_limit, simplify=True
+        )
+        setup = GraspPlanningSetup(problem, options)
+        plan = setup.solve(seed=seed)
     except (PlanningFailed, InvalidProblem) as error:
         record["error"] = str(error)
         record["trials"] = [
@@ -320,9 +336,6 @@ def execute(
         The trial (``dx, dy, yaw, collision, collision_row, collision_d, pairs,
         force_closure, enclosed, contacts, fingers, success``) and the closed hand.
     """
-    from openup_ompl.collision import CollisionWorld
-    from openup_ompl.grasp import HandCloser, enclosed, force_closure, object_axis
-
     problem = setup.problem
     true = displaced(problem, dx, dy, yaw)
     assert true.object is not None
@@ -373,107 +386,6 @@ def summarize(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
         row["success_rate"] = row["successes"] / row["trials"]
         rows.append({column: row[column] for column in CSV_COLUMNS})
     return rows
-
-
-def _direction(row: dict[str, Any]) -> str:
-    if row["dx"] == 0 and row["dy"] == 0:
-        return "none"
-    axis = "x" if row["dx"] != 0 else "y"
-    return ("+" if row["dx"] + row["dy"] > 0 else "-") + axis
-
-
-def _magnitude(row: dict[str, Any]) -> float:
-    return float(abs(row["dx"]) + abs(row["dy"]))
-
-
-def _grouped(rows: Sequence[dict[str, Any]], by_direction: bool) -> dict[Any, list[int]]:
-    """``(u, direction or "all", |delta|) -> [successes, trials]`` (yaws pooled; the zero
-    error's direction is ``"none"``)."""
-    table: dict[Any, list[int]] = {}
-    for row in rows:
-        direction = _direction(row) if by_direction else "all"
-        cell = table.setdefault((row["u"], direction, _magnitude(row)), [0, 0])
-        cell[0] += row["successes"]
-        cell[1] += row["trials"]
-    return table
-
-
-def markdown_tables(rows: Sequence[dict[str, Any]]) -> str:
-    """Success per ``u`` and error magnitude (directions and yaws pooled), then per
-    direction; cells are ``successes/trials``."""
-    us = sorted({row["u"] for row in rows})
-    magnitudes = sorted({_magnitude(row) for row in rows})
-    head = "| u | " + " | ".join(f"{m * 100:g} cm" for m in magnitudes) + " |"
-    rule = "|---:|" + "---:|" * len(magnitudes)
-    pooled = _grouped(rows, by_direction=False)
-    lines = ["Success (directions pooled): successes / trials", "", head, rule]
-    for u in us:
-        cells = [pooled.get((u, "all", m)) for m in magnitudes]
-        lines.append(
-            f"| {u:g} | " + " | ".join(f"{c[0]}/{c[1]}" if c else "" for c in cells) + " |"
-        )
-    by_direction = _grouped(rows, by_direction=True)
-    directions = [d for d in ("+x", "-x", "+y", "-y") if any(k[1] == d for k in by_direction)]
-    if directions:
-        moved = [m for m in magnitudes if m > 0]
-        lines += ["", "Success per direction of the error: successes / trials", ""]
-        lines.append("| u | error | " + " | ".join(f"{m * 100:g} cm" for m in moved) + " |")
-        lines.append("|---:|:---|" + "---:|" * len(moved))
-        for u in us:
-            for d in directions:
-                cells = [by_direction.get((u, d, m)) for m in moved]
-                lines.append(
-                    f"| {u:g} | {d} | "
-                    + " | ".join(f"{c[0]}/{c[1]}" if c else "" for c in cells)
-                    + " |"
-                )
-    return "\n".join(lines) + "\n"
-
-
-def write_csv(rows: Sequence[dict[str, Any]], path: Path) -> Path:
-    """``robustness.csv``: the :data:`CSV_COLUMNS`, one row per cell."""
-    with path.open("w", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=list(CSV_COLUMNS))
-        writer.writeheader()
-        for row in rows:
-            writer.writerow({**row, "success_rate": f"{row['success_rate']:.4f}"})
-    return path
-
-
-def plot_robustness(rows: Sequence[dict[str, Any]], path: Path, title: str = "") -> Path:
-    """Success rate against the error magnitude, one line per ``u``: all directions
-    pooled, then one panel per direction."""
-
-    plt = _pyplot()
-    us = sorted({row["u"] for row in rows})
-    grouped = _grouped(rows, by_direction=True)
-    pooled = _grouped(rows, by_direction=False)
-    panels = ["all", *[d for d in ("+x", "-x", "+y", "-y") if any(k[1] == d for k in grouped)]]
-    figure, axes = plt.subplots(
-        1, len(panels), figsize=(3.2 * len(panels), 3.4), sharey=True, squeeze=False
-    )
-    colours = plt.get_cmap("viridis")(np.linspace(0.0, 0.9, len(us)))
-    for ax, panel in zip(axes[0], panels, strict=True):
-        table = pooled if panel == "all" else grouped
-        for u, colour in zip(us, colours, strict=True):
-            points = sorted(
-                (m * 100, s / t)
-                for (uu, name, m), (s, t) in table.items()
-                if uu == u and (name == panel or (name == "none" and panel != "all"))
-            )
-            if points:
-                xs, ys = zip(*points, strict=True)
-                ax.plot(xs, ys, "o-", color=colour, label=f"u = {u:g}")
-        ax.set_title("all directions" if panel == "all" else f"error along {panel}")
-        ax.set_xlabel("object pose error [cm]")
-        ax.set_ylim(-0.05, 1.05)
-        ax.grid(alpha=0.3)
-    axes[0][0].set_ylabel("success rate")
-    axes[0][0].legend(loc="lower left", fontsize=8)
-    if title:
-        figure.suptitle(title)
-    figure.tight_layout()
-    return _save(figure, path, 120)
 
 
 @dataclass(frozen=True)
@@ -535,7 +447,7 @@ def run_robustness(
     rows = summarize(records)
     trials = out / "trials.json"
     trials.write_text(json.dumps(records, indent=1) + "\n")
-    csv_path = write_csv(rows, out / "robustness.csv")
+    csv_path = write_csv(rows, out / "robustness.csv", CSV_COLUMNS)
     markdown = out / "robustness.md"
     law = "open-arrival variant" if options.open_arrival else "Algorithm 3"
     torsion = problem.robot.spec.torsion if options.torsion is None else options.torsion
@@ -554,28 +466,38 @@ def run_robustness(
     except MissingExtra as error:
         print(f"no plot: {error}", file=sys.stderr)
         plot = None
-    grasps = None if plot is None else _grasp_figure(problem, options, torsion, out / "grasps.png")
+    grasps = None
+    if plot is not None:
+        figure = figure_trials(problem, options, torsion)
+        if figure is not None:
+            grasps = write_grasp_figure(figure[0], figure[1], out / "grasps.png")
     return RobustnessResult(csv_path, markdown, plot, trials, rows, records, grasps)
 
 
-def _grasp_figure(
-    problem: Problem, options: RobustnessOptions, torsion: float, out: Path
-) -> Path | None:
-    """``grasps.png`` for one plan: ``u = 0.3`` (or the middle ``u``), the first seed,
-    the nominal pose and the largest error up to 2 cm in each direction."""
-    from openup_ompl.exceptions import PlanningFailed
-    from openup_ompl.planning import GraspPlanningSetup
-    from openup_ompl.viz.grasps import write_grasp_figure
+def figure_trials(
+    problem: Problem, options: RobustnessOptions, torsion: float
+) -> tuple[Plan, list[tuple[dict[str, Any], np.ndarray, Shape]]] | None:
+    """The paper's Fig. 1 experiment for one plan: ``u = 0.3`` (or the middle ``u``), the
+    first seed, executed at the nominal pose and at the largest error up to 2 cm in each
+    direction.
 
+    Returns:
+        The plan and, per error, ``(trial, closed hand q, true object)``; ``None`` when
+        planning failed (the reason on stderr).
+    """
     u = 0.3 if 0.3 in options.us else sorted(options.us)[len(options.us) // 2]
     moved = [d for d in options.deltas if 0 < d <= 0.02] or [d for d in options.deltas if d > 0]
     cells = perturbations([0.0, *([max(moved)] if moved else [])])
     try:
-        setup = GraspPlanningSetup(problem, u=u, open_arrival=options.open_arrival)
-        plan = setup.solve(
-            options.time_limit, options.planner, seed=options.first_seed, simplify=True
-        )
+        setup = GraspPlanningSetup(problem, options.planning(u))
+        plan = setup.solve(seed=options.first_seed)
     except (PlanningFailed, InvalidProblem) as error:
         print(f"no grasp figure: {error}", file=sys.stderr)
         return None
-    return write_grasp_figure(setup, plan, cells, out, friction=options.friction, torsion=torsion)
+    columns = []
+    for dx, dy, yaw in cells:
+        trial, grasp = execute(setup, plan, dx, dy, yaw, friction=options.friction, torsion=torsion)
+        true = displaced(problem, dx, dy, yaw).object
+        assert true is not None
+        columns.append((trial, grasp.q, true))
+    return plan, columns

@@ -1,7 +1,8 @@
-"""A plan file loaded for display: robot kinematics and geometry, scene shapes, the law.
+"""A plan prepared for display: what drawing needs beyond the plan file's contents.
 
-Built from the plan file alone (CONTRACT §4) and the URDF and meshes it names, so that a
-plan can be shown without its scene or robot TOML. Needs only pinocchio, coal and numpy.
+The file is read by :class:`openup_ompl.plan.PlanFile` (beside its writer); this adds the
+palm track, the normalised distance along the plan, the robot's meshes. Needs only
+pinocchio, coal and numpy.
 """
 
 from __future__ import annotations
@@ -15,34 +16,10 @@ import numpy as np
 import pinocchio as pin
 
 from openup_ompl._model import prismatic_joints
-from openup_ompl.exceptions import ConfigError, FrameNotFound, JointNotFound
+from openup_ompl.exceptions import ConfigError
 from openup_ompl.hand_law import GoalDistance, HandLaw
-from openup_ompl.plan import read_plan
+from openup_ompl.plan import Plan, PlanFile
 from openup_ompl.scene import Shape
-
-
-def _key(table: Any, key: str, where: str = "") -> Any:
-    """``table[key]``, or a ConfigError naming the missing ``where.key``."""
-    name = f"{where}.{key}" if where else key
-    if not isinstance(table, dict) or key not in table:
-        raise ConfigError(name, None, f"a plan file with {name}")
-    return table[key]
-
-
-def _numbers(value: Any, where: str, shape: tuple[int, ...]) -> np.ndarray:
-    """``value`` as a finite float array of ``shape`` (-1: any length), or a ConfigError."""
-    try:
-        array = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        array = np.zeros(0)
-    fits = array.ndim == len(shape) and all(
-        n in (-1, m) for n, m in zip(shape, array.shape, strict=True)
-    )
-    if not (fits and array.size and np.all(np.isfinite(array))):
-        expected = "[x, y, z, qx, qy, qz, qw]" if shape == (7,) else f"rows of {shape[-1]} values"
-        shown = value if isinstance(value, list) and len(value) <= 7 else "malformed"
-        raise ConfigError(where, shown, expected)
-    return array
 
 
 @dataclass(eq=False)
@@ -50,16 +27,9 @@ class PlanScene:
     """Everything needed to draw a plan.
 
     Attributes:
-        data: The plan file's contents.
+        plan: The plan as its file holds it (robot model, law, shapes, path).
         name: A short name for titles (the plan file's stem).
-        model: Pinocchio model of the robot (the plan's URDF).
-        path: ``(N, nq)`` full configurations of the plan.
-        hand_idx: Indices in ``q`` of the hand joints, in the law's order.
-        hand_joints: Hand joint names, in the law's order.
         prismatic: Per hand joint, whether it is prismatic [m] (else revolute [rad]).
-        palm_frame_id: Pinocchio frame index of the palm frame.
-        law: The hand law the plan followed.
-        grasp: Grasp pose of the palm frame (world frame).
         palm: ``(N, 3)`` palm frame origin at every row [m] (world frame).
         distances: Normalised palm-to-grasp distance ``d`` at every row (Algorithm 1).
         progress: Palm path length travelled at every row, normalised to [0, 1].
@@ -67,16 +37,9 @@ class PlanScene:
         object_name: Name of the object to grasp, or ``None``.
     """
 
-    data: dict[str, Any]
+    plan: PlanFile
     name: str
-    model: pin.Model
-    path: np.ndarray
-    hand_idx: np.ndarray
-    hand_joints: list[str]
     prismatic: np.ndarray
-    palm_frame_id: int
-    law: HandLaw
-    grasp: pin.SE3
     palm: np.ndarray
     distances: np.ndarray
     progress: np.ndarray
@@ -85,95 +48,84 @@ class PlanScene:
 
     @classmethod
     def from_file(cls, path: str | Path) -> PlanScene:
-        """Read and check a plan file (:func:`openup_ompl.read_plan`) and load its robot.
+        """Read and check a plan file (:meth:`openup_ompl.plan.PlanFile.read`).
 
         Raises:
             ConfigError: The file is not a readable plan, a key is missing or holds a bad
-                value, or its URDF or meshes cannot be loaded.
+                value, or its URDF cannot be loaded.
             JointNotFound, FrameNotFound: The plan names a joint or frame its URDF lacks.
         """
-        path = Path(path)
-        return cls.from_dict(read_plan(path), path.stem)
+        return cls.from_plan_file(PlanFile.read(path))
 
     @classmethod
     def from_dict(cls, data: dict[str, Any], name: str = "plan") -> PlanScene:
         """Load a plan's contents (as :meth:`openup_ompl.Plan.to_dict` gives them)."""
-        robot = _key(data, "robot")
-        urdf = str(_key(robot, "urdf", "robot"))
-        if not Path(urdf).is_file():
-            raise ConfigError("robot.urdf", urdf, "an existing URDF file")
-        try:
-            model = pin.buildModelFromUrdf(urdf)
-        except (RuntimeError, ValueError) as error:
-            raise ConfigError("robot.urdf", urdf, f"a loadable URDF ({error})") from None
-        names = [model.names[i] for i in range(1, model.njoints) if model.joints[i].nq > 0]
-        if list(_key(robot, "joint_names", "robot")) != names:
-            raise ConfigError("robot.joint_names", robot["joint_names"], f"{names} (the URDF's)")
-        hand_joints = list(_key(robot, "hand_joints", "robot"))
-        for joint in hand_joints:
-            if not model.existJointName(joint):
-                raise JointNotFound(joint, names)
-        joints = [model.joints[model.getJointId(n)] for n in hand_joints]
-        hand_idx = np.array([j.idx_q for j in joints], dtype=np.intp)
-        prismatic = prismatic_joints(model, hand_joints)
-        palm_frame = str(_key(robot, "palm_frame", "robot"))
-        if not model.existFrame(palm_frame):
-            raise FrameNotFound(palm_frame, [f.name for f in model.frames])
+        return cls.from_plan_file(PlanFile.from_dict(data, name))
 
-        table = _key(data, "hand_law")
-        if not isinstance(table, dict):
-            raise ConfigError("hand_law", table, "a table with c, b, w, u, mga")
-        law = HandLaw.from_table(
-            table,
-            model.lowerPositionLimit[hand_idx],
-            model.upperPositionLimit[hand_idx],
-            "hand_law",
-            ignore=("start_palm_distance",),
-        )
-        grasp_pose = _numbers(_key(data, "grasp_pose"), "grasp_pose", (7,))
-        grasp = pin.XYZQUATToSE3(grasp_pose)
-        path = _numbers(_key(data, "path"), "path", (-1, model.nq))
-        try:
-            palm_frame_id = model.getFrameId(palm_frame)
-        except ValueError:  # a joint and a link of that name: the link's frame
-            palm_frame_id = model.getFrameId(palm_frame, pin.FrameType.BODY)
+    @classmethod
+    def from_plan(cls, plan: Plan, name: str = "plan") -> PlanScene:
+        """Draw a plan in memory (no plan file written or read)."""
+        return cls.from_plan_file(PlanFile.from_plan(plan, name))
+
+    @classmethod
+    def from_plan_file(cls, plan: PlanFile) -> PlanScene:
+        """What drawing ``plan`` needs beyond the file: palm track, ``d``, progress."""
+        model = plan.model
         kinematics = model.createData()
         placements = []
-        for q in path:
+        for q in plan.path:
             pin.framesForwardKinematics(model, kinematics, q)
-            placements.append(kinematics.oMf[palm_frame_id].copy())
-        goal = GoalDistance(grasp, placements[0], law.distance, law.rotation_weight)
+            placements.append(kinematics.oMf[plan.palm_frame_id].copy())
+        law = plan.law
+        goal = GoalDistance(plan.grasp, placements[0], law.distance, law.rotation_weight)
         palm = np.array([p.translation for p in placements])
         travel = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(palm, axis=0), axis=1))])
-
-        scene = _key(data, "scene")
-        if not isinstance(scene, dict):
-            raise ConfigError("scene", scene, "a table with the object and obstacles")
-        shapes = [
-            Shape.from_table(table, f"scene.obstacles[{i}]")
-            for i, table in enumerate(scene.get("obstacles") or [])
-        ]
-        object_name = None
-        if scene.get("object"):
-            shapes.append(Shape.from_table(scene["object"], "scene.object"))
-            object_name = shapes[-1].name
+        shapes = [*plan.obstacles, *([plan.object] if plan.object is not None else [])]
         return cls(
-            data=data,
-            name=name,
-            model=model,
-            path=path,
-            hand_idx=hand_idx,
-            hand_joints=hand_joints,
-            prismatic=prismatic,
-            palm_frame_id=palm_frame_id,
-            law=law,
-            grasp=grasp,
+            plan=plan,
+            name=plan.name,
+            prismatic=prismatic_joints(model, plan.hand_joints),
             palm=palm,
             distances=np.array([goal(p) for p in placements]),
             progress=travel / max(float(travel[-1]), 1e-12),
             shapes=shapes,
-            object_name=object_name,
+            object_name=None if plan.object is None else plan.object.name,
         )
+
+    @property
+    def model(self) -> pin.Model:
+        """Pinocchio model of the robot (the plan's URDF)."""
+        return self.plan.model
+
+    @property
+    def path(self) -> np.ndarray:
+        """``(N, nq)`` full configurations of the plan."""
+        return self.plan.path
+
+    @property
+    def hand_idx(self) -> np.ndarray:
+        """Indices in ``q`` of the hand joints, in the law's order."""
+        return self.plan.hand_idx
+
+    @property
+    def hand_joints(self) -> list[str]:
+        """Hand joint names, in the law's order."""
+        return list(self.plan.hand_joints)
+
+    @property
+    def palm_frame_id(self) -> int:
+        """Pinocchio frame index of the palm frame."""
+        return self.plan.palm_frame_id
+
+    @property
+    def law(self) -> HandLaw:
+        """The hand law the plan followed."""
+        return self.plan.law
+
+    @property
+    def grasp(self) -> pin.SE3:
+        """Grasp pose of the palm frame (world frame)."""
+        return self.plan.grasp
 
     @property
     def hand_path(self) -> np.ndarray:
@@ -214,20 +166,15 @@ class PlanScene:
         Raises:
             ConfigError: A mesh cannot be found or loaded.
         """
-        robot = self.data["robot"]
+        dirs = list(self.plan.package_dirs)
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 return pin.buildGeomFromUrdf(
-                    self.model,
-                    robot["urdf"],
-                    kind,
-                    package_dirs=[str(p) for p in robot.get("package_dirs") or []],
+                    self.model, str(self.plan.urdf), kind, package_dirs=dirs
                 )
         except (RuntimeError, ValueError) as error:
-            raise ConfigError(
-                "robot.package_dirs", robot.get("package_dirs"), f"the URDF's meshes ({error})"
-            ) from None
+            raise ConfigError("robot.package_dirs", dirs, f"the URDF's meshes ({error})") from None
 
     def hand_geometry(self, geometry: pin.GeometryModel) -> np.ndarray:
         """Per geometry object, whether it moves with a hand joint (a finger)."""

@@ -10,10 +10,11 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
+from openup_ompl.plan import Plan
+from openup_ompl.scene import Shape
 from openup_ompl.viz._mpl import _pyplot, _save
 from openup_ompl.viz._scene import PlanScene
 from openup_ompl.viz.storyboard import (
@@ -25,10 +26,6 @@ from openup_ompl.viz.storyboard import (
     _Robot,
     _triangles,
 )
-
-if TYPE_CHECKING:
-    from openup_ompl.plan import Plan
-    from openup_ompl.planning import GraspPlanningSetup
 
 SUCCESS_COLOR = (0.18, 0.62, 0.30)
 FAILURE_COLOR = (0.80, 0.18, 0.16)
@@ -50,17 +47,22 @@ def _outcome(trial: dict[str, object]) -> str:
 
 
 def write_grasp_figure(
-    setup: GraspPlanningSetup,
     plan: Plan,
-    cells: Sequence[tuple[float, float, float]],
+    columns: Sequence[tuple[dict[str, object], np.ndarray, Shape]],
     out: str | Path,
     *,
-    friction: float = 0.5,
-    torsion: float = 0.0,
     options: StoryboardOptions | None = None,
 ) -> Path:
-    """Write the figure for ``plan`` (made by ``setup``) and the errors ``cells``
-    (``(dx, dy, yaw)`` [m, m, rad], world frame).
+    """Draw one plan's grasp against displaced objects, one column per executed trial.
+
+    Args:
+        plan: The plan (its last row is the open hand at the grasp).
+        columns: Per trial ``(trial, closed q, true object)``: the trial record (``dx,
+            dy, yaw, collision, pairs, force_closure, success``), the full configuration
+            after closing the hand, and the object where it really was (world frame), as
+            :func:`openup_ompl.robustness.figure_trials` gives them.
+        out: The PNG to write.
+        options: Rendering settings.
 
     Returns:
         The PNG's path.
@@ -68,16 +70,14 @@ def write_grasp_figure(
     Raises:
         MissingExtra: matplotlib is not installed.
     """
-    from openup_ompl.robustness import displaced, execute
-
     plt = _pyplot()
     options = options or StoryboardOptions()
-    scene = PlanScene.from_dict(plan.to_dict(), "grasps")
+    scene = PlanScene.from_plan(plan, "grasps")
     robot = _Robot(scene, options)
     last = plan.path[-1]
     size = options.panel_size
-    fig = plt.figure(figsize=(size * len(cells), size * 2.15))
-    grid = fig.add_gridspec(2, len(cells))
+    fig = plt.figure(figsize=(size * len(columns), size * 2.15))
+    grid = fig.add_gridspec(2, len(columns))
     grid.update(left=0.005, right=0.995, top=0.86, bottom=0.02, wspace=0.02, hspace=0.25)
     variant = ", open arrival" if plan.law.open_arrival else ""
     fig.suptitle(
@@ -92,18 +92,16 @@ def write_grasp_figure(
     half = float(np.max(points.max(axis=0) - points.min(axis=0))) / 2 * 1.45
     low, high = middle - half, middle + half
     direction = robot.closeup_direction(last, scene.view_direction())
-    for column, (dx, dy, yaw) in enumerate(cells):
-        trial, grasp = execute(setup, plan, dx, dy, yaw, friction=friction, torsion=torsion)
-        true = displaced(setup.problem, dx, dy, yaw)
-        assert true.object is not None
-        shapes = [s for s in scene.shapes if s.name != scene.object_name] + [true.object]
+    for column, (trial, closed_q, true_object) in enumerate(columns):
+        dx, dy, yaw = (float(trial[key]) for key in ("dx", "dy", "yaw"))  # type: ignore[arg-type]
+        shapes = [s for s in scene.shapes if s.name != scene.object_name] + [true_object]
         moved = dataclasses.replace(scene, shapes=shapes)
         environment = _environment(moved, low, high)
         top = fig.add_subplot(grid[0, column], projection="3d")
         layers = [*environment, (_triangles(arm), ARM_COLOR), (_triangles(open_hand), HAND_COLOR)]
         _draw(top, layers, low, high, direction, strict=True)
         top.set_title(_label(dx, dy, yaw), fontsize=11, pad=0)
-        _, closed = robot.meshes_at(grasp.q, fine=True)
+        _, closed = robot.meshes_at(closed_q, fine=True)
         colour = SUCCESS_COLOR if trial["success"] else FAILURE_COLOR
         bottom = fig.add_subplot(grid[1, column], projection="3d")
         layers = [*environment, (_triangles(arm), ARM_COLOR), (_triangles(closed), colour)]

@@ -200,13 +200,13 @@ def write_html(scene: PlanScene, out: str | Path, options: HtmlOptions | None = 
     blob = b"".join(struct.pack("<I", len(c)) + c for c in recorder.commands)
     bundle = Path(meshcat.__file__).parent / "viewer" / "dist" / "main.min.js"
     law = scene.law
-    title = f"{scene.name}: {scene.data.get('planner', 'plan')}"
+    title = f"{scene.name}: {scene.plan.planner}"
     info = {
         "title": title,
         "details": (
             f"u = {law.u:g}, mga = {law.mga:g}"
             + (", fixed hand" if law.fixed is not None else "")
-            + f" · seed {scene.data.get('seed')} · {len(scene.path)} states"
+            + f" · seed {scene.plan.seed} · {len(scene.path)} states"
         ),
         "fps": options.fps,
         "camera": _camera(scene),

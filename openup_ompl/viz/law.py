@@ -106,7 +106,7 @@ def _plan_scene(plan: str | Path | dict[str, Any] | Plan | PlanScene) -> PlanSce
     if isinstance(plan, PlanScene):
         return plan
     if isinstance(plan, Plan):
-        return PlanScene.from_dict(plan.to_dict())
+        return PlanScene.from_plan(plan)
     if isinstance(plan, dict):
         return PlanScene.from_dict(plan)
     return PlanScene.from_file(plan)
@@ -194,7 +194,7 @@ def plot_hand_law(
     axes[0, 0].set_title(
         f"Fig. 3 for this plan: hand law{kind}, u = {law.u:g}, mga = {law.mga:g}{continuous}"
     )
-    axes[0, 1].set_title(f"{scene.data.get('planner', 'plan')}: the hand along the reach")
+    axes[0, 1].set_title(f"{scene.plan.planner}: the hand along the reach")
     fig.tight_layout()
     return _save(fig, out, dpi)
 

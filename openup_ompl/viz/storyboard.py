@@ -279,7 +279,7 @@ def write_storyboard(
     grid.update(left=0.005, right=0.995, top=0.85, bottom=0.06, wspace=0.02, hspace=0.12)
     law = scene.law
     fig.suptitle(
-        f"{scene.data.get('planner', 'plan')} reach to grasp, the hand following the law"
+        f"{scene.plan.planner} reach to grasp, the hand following the law"
         f" (u = {law.u:g}, mga = {law.mga:g})" + ("" if law.fixed is None else " — fixed hand"),
         fontsize=14,
         y=0.99,
