@@ -12,7 +12,7 @@ only where a fresh instance of the same check agrees with it (a warm-start artif
 reported), anything else is an assertion error.
 
 Part B (motions): ``CoupledChecker.check_motion`` (goal state, then the intermediate
-states in one batched parallel query) against ``check_motion_serial`` (one state at a
+states in one batched parallel query) against the same check on a one-thread world (one state at a
 time) on random motions between valid configurations, at two lengths. Both must give the
 same verdicts. States are counted from ``checker.states_checked`` deltas: the batch
 counts every state it submits, even when the parallel query stops at a collision.
@@ -323,8 +323,7 @@ def bench_motions(setup: openup_ompl.GraspPlanningSetup, args: argparse.Namespac
         )
         methods = {
             "batch": (checker, checker.check_motion),
-            "batch1": (checker_1, checker_1.check_motion),
-            "serial": (checker, checker.check_motion_serial),
+            "serial": (checker_1, checker_1.check_motion),
         }
         verdicts: dict[str, list[bool]] = {}
         counts: dict[str, list[int]] = {}
@@ -484,7 +483,7 @@ def report(info: dict, states: dict, motions: list[dict]) -> str:
     labels = {
         "batch": f"batch, {motions[0]['threads'] if motions else '?'} threads (`check_motion`)",
         "batch1": "batch, 1 thread (`check_motion`)",
-        "serial": "one by one (`check_motion_serial`)",
+        "serial": "one thread: the batch back end loops over the states one by one",
     }
     rows = []
     for entry in motions:

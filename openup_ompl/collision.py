@@ -132,8 +132,17 @@ class CollisionWorld:
         """Collision flags for the columns of ``qs`` (shape ``(nq, N)``), in parallel.
 
         With ``stop_at_first`` the batch stops at the first colliding configuration: the
-        flags are then only meaningful as "some configuration collides".
+        flags are then only meaningful as "some configuration collides". On one thread
+        the columns are checked one by one in this thread (the parallel pool measured
+        slower there).
         """
+        if self.num_threads == 1:
+            flags = np.zeros(qs.shape[1], dtype=bool)
+            for i in range(qs.shape[1]):
+                flags[i] = self.in_collision(qs[:, i])
+                if flags[i] and stop_at_first:
+                    break
+            return flags
         with self._pool_lock:
             if self._pool is None:
                 self._pool = _ManagerPool(self.model, self.geometry_model, self.num_threads)

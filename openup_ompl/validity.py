@@ -342,11 +342,9 @@ class CoupledChecker:
         and ``b`` go to the base padding in one batch: every state keeps that margin
         (free), or one collides with the finest (not free), or some keep only a thinner
         margin and the intervals next to them are cut finer until each is covered
-        (:meth:`_certify`). One core checks the states one by one instead (the batch
-        measured slower there).
+        (:meth:`_certify`). On one thread the batches loop over their states
+        (:meth:`~openup_ompl.collision.CollisionWorld.batch_in_collision`).
         """
-        if self.world.num_threads == 1:
-            return self.check_motion_serial(a, b)
         self.motions_checked += 1
         free, db = self._check_state(b)
         if not free:
@@ -377,42 +375,6 @@ class CoupledChecker:
                 return False
             levels[i] = level
         return self._certify(arms, levels, weights)
-
-    def check_motion_serial(self, a: np.ndarray, b: np.ndarray) -> bool:
-        """:meth:`check_motion` one state at a time (single-core path, and the reference
-        the batch is measured against in ``benchmarks/bench_validity.py``)."""
-        self.motions_checked += 1
-        if not self.is_valid(b):
-            return False
-        weights = self.weights(a, b)
-        if self._coarse:
-            arms = np.concatenate(
-                [a[None, :], self.interpolate(a, b, self.coarse_resolution, weights)]
-            )
-            verdict = self._coarse_serial(arms, weights)
-            if verdict is not None:
-                return verdict
-        arms = np.concatenate([a[None, :], self.interpolate(a, b, weights=weights)])
-        levels = np.zeros(arms.shape[0], dtype=int)
-        for i, arm in enumerate(arms):
-            self.states_checked += 1
-            level = self._level(self.full_q(arm), self._coarse)
-            if level is None:
-                return False
-            levels[i] = level
-        return self._certify(arms, levels, weights)
-
-    def _coarse_serial(self, arms: np.ndarray, weights: np.ndarray) -> bool | None:
-        """The coarse pass one state at a time: ``True`` if every state keeps the widest
-        margin, ``False`` if one collides with the finest, else ``None``."""
-        qs = [self.full_q(arm) for arm in arms]
-        self.states_checked += len(qs)
-        if not any(self._worlds[0].in_collision(q) for q in qs):
-            zeros = np.zeros(arms.shape[0], dtype=int)
-            return self._certify(arms, zeros, weights, self.coarse_resolution)
-        if any(self.finest_world.in_collision(q) for q in qs):
-            return False
-        return None
 
     def _level(self, q: np.ndarray, first: int = 0) -> int | None:
         """Index of the widest margin, from level ``first`` on, at which ``q`` is

@@ -154,15 +154,25 @@ def test_hand_rate_bounds_finger_motion(robot_setup: oo.GraspPlanningSetup) -> N
 
 
 def test_batched_and_serial_motion_checks_agree(setup: oo.GraspPlanningSetup) -> None:
-    """The batched motion check gives the one-by-one verdict on valid and colliding motions."""
+    """The motion check on a parallel world and on a one-thread world (its batches then
+    loop over the states) give the same verdicts and counts on valid and colliding motions."""
+    problem = setup.problem
+    one = CoupledChecker(
+        problem,
+        setup.law,
+        world=CollisionWorld(problem, num_threads=1, padding=setup.checker.world.padding),
+    )
     arms = _valid_arms(setup, 60, seed=2)
     verdicts = []
     for a, b in zip(arms[::2], arms[1::2], strict=True):
         b = a + (b - a) * 0.4
         if not setup.checker.is_valid(b):
             continue
+        before = (setup.checker.states_checked, one.states_checked)
         verdicts.append(setup.checker.check_motion(a, b))
-        assert verdicts[-1] == setup.checker.check_motion_serial(a, b)
+        assert verdicts[-1] == one.check_motion(a, b)
+        counts = (setup.checker.states_checked - before[0], one.states_checked - before[1])
+        assert counts[0] == counts[1]
     assert True in verdicts and False in verdicts
 
 
@@ -185,7 +195,6 @@ def test_coarse_pass_gives_the_fine_verdicts_with_fewer_states(
             before = checker.states_checked
             verdict = checker.check_motion(a, b)
             counts.append(checker.states_checked - before)
-            assert verdict == checker.check_motion_serial(a, b)
         verdicts.append(verdict)
         assert fine.check_motion(a, b) == verdict
         fewer += verdict and counts[1] < counts[0] / 2
