@@ -43,7 +43,7 @@ def measure(scene: str, solutions: int, repeats: int) -> dict[str, object]:
     goal = setup.goal
     while len(goal.solutions) < solutions:
         goal.sample()
-    qs = [setup.checker.full_q(arm) for arm in goal.solutions[:solutions]]
+    qs = [setup.checker.coupled_q(arm) for arm in goal.solutions[:solutions]]
     times, steps, gaps, lp_times, closures = [], [], [], [], []
     for true in (problem, displaced(problem, 0.0, 0.01)):
         closer = HandCloser(true)

@@ -125,7 +125,7 @@ def bench_states(setup: openup_ompl.GraspPlanningSetup, args: argparse.Namespace
         state = si.allocState()
         state[0:dof] = arm
         states.append(state)
-    qs = [checker.full_q(arm) for arm in arms]
+    qs = [checker.coupled_q(arm) for arm in arms]
 
     # The bare OMPL checker: a fixed hand (the law's plateau, what the law gives at most
     # random configurations), on its own SpaceInformation over the same state space.

@@ -34,7 +34,7 @@ from openup_ompl.grasp import (
     enclosed,
     force_closure,
 )
-from openup_ompl.hand_law import GoalDistance, HandLaw, open_hand
+from openup_ompl.hand_law import GoalDistance, HandLaw, NormalizedDistance, open_hand
 from openup_ompl.ik import IKOptions, IKSolver
 from openup_ompl.plan import Plan, PlanFile, read_plan
 from openup_ompl.planners import IKBiRRT, IKBiRRTOptions
@@ -75,6 +75,7 @@ __all__ = [
     "InvalidProblem",
     "JointNotFound",
     "MissingExtra",
+    "NormalizedDistance",
     "OpenUpError",
     "Plan",
     "PlanFile",

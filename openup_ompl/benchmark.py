@@ -220,7 +220,7 @@ def benchmark_run(
         dof = setup.problem.robot.arm_idx.size
         last = ss.getSolutionPath().getStates()[-1]
         arm = np.array([last[i] for i in range(dof)])
-        q = checker.full_q(arm)
+        q = checker.coupled_q(arm)
         # Sum of the hand joints (for the Panda, the gap between the fingers [m]).
         record["final_aperture"] = float(np.sum(q[setup.problem.robot.hand_idx]))
     return record

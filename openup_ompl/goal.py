@@ -90,13 +90,15 @@ class GraspGoal:
             )
         return solution
 
-    def distance(self, arm: np.ndarray) -> float:
+    def task_error(self, arm: np.ndarray) -> float:
         """Task-space distance to the grasp [m]: position error plus
         :data:`ROTATION_WEIGHT` times the rotation error."""
         q = self._q
         q[self.checker.robot.arm_idx] = arm
         placement = self.checker.robot.palm_placement(self._data, q)
         return palm_distance(placement, self._target_position, self._target_rotation_t)
+
+    distance = task_error  # the old name ("distance" also meant the normalised d)
 
 
 class IKGoalRegion(ob.GoalSampleableRegion):
@@ -137,5 +139,5 @@ class IKGoalRegion(ob.GoalSampleableRegion):
         return True
 
     def distanceGoal(self, state: ob.State) -> float:  # noqa: N802 - OMPL's name
-        value = self.goal.distance(np.array(state[0 : self._n]))
+        value = self.goal.task_error(np.array(state[0 : self._n]))
         return value if math.isfinite(value) else math.inf

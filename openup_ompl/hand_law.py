@@ -319,7 +319,7 @@ TABLE_FIELDS: tuple[str, ...] = tuple(
 )
 
 
-class GoalDistance:
+class NormalizedDistance:
     """Algorithm 1: palm-to-grasp distance normalised by its value at the start.
 
     ``d(q) = D(FK(q), T_goal) / D(FK(q_start), T_goal)``, with ``D`` the Euclidean distance
@@ -359,3 +359,7 @@ class GoalDistance:
     def __call__(self, placement: pin.SE3) -> float:
         """Normalised distance ``d`` of a palm placement (0 at the grasp, 1 at the start)."""
         return self.raw(placement) * self._inv_start
+
+
+#: The old name of :class:`NormalizedDistance`, kept for existing code.
+GoalDistance = NormalizedDistance

@@ -267,7 +267,7 @@ class GraspPlanningSetup:
 
         if not self.checker.is_valid(problem.start):
             world = self.checker.finest_world
-            pairs = world.colliding_pairs(self.checker.full_q(problem.start))
+            pairs = world.colliding_pairs(self.checker.coupled_q(problem.start))
             raise InvalidProblem(
                 f"start configuration {problem.start.tolist()} is in collision: {pairs}"
             )
@@ -278,7 +278,7 @@ class GraspPlanningSetup:
         self.ik = IKSolver(robot, problem.grasp, options.ik_options)
         self._goal_rng_seed = 0
         self.goal = GraspGoal(self.checker, self.ik, np.random.default_rng(self._goal_rng_seed))
-        start_distance = self.goal.distance(problem.start)
+        start_distance = self.goal.task_error(problem.start)
         if start_distance <= GOAL_THRESHOLD:
             raise InvalidProblem(
                 f"start is already at the grasp pose (task-space distance {start_distance:.2e} m)"
@@ -407,7 +407,7 @@ class GraspPlanningSetup:
         arms = [waypoints[:1]]
         for a, b in zip(waypoints[:-1], waypoints[1:], strict=True):
             arms.append(self.checker.interpolate(a, b, weights=self.checker.weights(a, b)))
-        return self.checker.full_qs(np.concatenate(arms)).T.copy()
+        return self.checker.coupled_qs(np.concatenate(arms)).T.copy()
 
     def verify(self, path: np.ndarray) -> None:
         """Refuse a path that is not a valid plan: it must start at the start, end on the
@@ -420,7 +420,7 @@ class GraspPlanningSetup:
         arms = path[:, robot.arm_idx]
         if not np.allclose(arms[0], self.problem.start, atol=1e-9):
             raise VerifyFailed("the path does not start at the start")
-        distance = self.goal.distance(arms[-1])
+        distance = self.goal.task_error(arms[-1])
         if distance > GOAL_THRESHOLD:
             raise VerifyFailed(f"the path ends {distance:.2e} m from the grasp pose")
         flags = self.checker.finest_world.batch_in_collision(

@@ -355,7 +355,7 @@ def execute(
         # Algorithm 1's d where the plan first touches: how far from the grasp.
         "collision_d": None
         if hit is None
-        else setup.checker.distance(plan.path[hit, problem.robot.arm_idx]),
+        else setup.checker.normalized_distance(plan.path[hit, problem.robot.arm_idx]),
         "pairs": world.colliding_pairs(plan.path[hit]) if hit is not None else [],
         "force_closure": bool(closure),
         "enclosed": enclosed(grasp.normals, object_axis(true.object)),

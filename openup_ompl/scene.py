@@ -1,4 +1,5 @@
-"""Scene files (CONTRACT §3): robot, start, grasp pose, hand law, object and obstacles."""
+"""Scene files (README, "Scene file"): robot, start, grasp pose, hand law, object and
+obstacles. Every table rejects keys it does not know, naming the nearest valid one."""
 
 from __future__ import annotations
 
@@ -17,6 +18,11 @@ from openup_ompl.hand_law import TABLE_FIELDS, HandLaw
 from openup_ompl.robot import Robot, find_robot_file, load_robot
 
 SHAPES = ("box", "cylinder", "sphere")
+#: The dimensions each shape takes [m].
+SHAPE_KEYS = {"box": ("size",), "cylinder": ("radius", "length"), "sphere": ("radius",)}
+#: The keys of a scene file's top level and of its ``[grasp]`` table.
+SCENE_KEYS = ("robot", "start", "grasp", "hand", "object", "obstacles")
+GRASP_KEYS = ("pose",)
 #: The hand-law fields a scene's ``[hand]`` may override (the fixed preshape is a planning
 #: option, not part of a scene).
 SCENE_LAW_FIELDS = tuple(name for name in TABLE_FIELDS if name != "fixed")
@@ -57,6 +63,11 @@ class Shape:
         """Read a scene's ``[object]`` (``is_object``) or ``[[obstacles]]`` table."""
         if not isinstance(table, dict):
             raise ConfigError(where, table, "a table with name, shape, pose and dimensions")
+        shape = _toml.require(table, "shape", where)
+        if shape not in SHAPES:
+            raise ConfigError(f"{where}.shape", shape, f"one of {SHAPES}")
+        known = {"name", "shape", "pose", "mass", "friction", *SHAPE_KEYS[shape]}
+        _toml.check_keys(table, known, where)
         physics: dict[str, Any] = {}
         if is_object:
             physics["mass"] = _toml.number(
@@ -69,9 +80,6 @@ class Shape:
                 table.get("friction", OBJECT_FRICTION), f"{where}.friction", low=0.0
             )
         name = _toml.string(_toml.require(table, "name", where), f"{where}.name")
-        shape = _toml.require(table, "shape", where)
-        if shape not in SHAPES:
-            raise ConfigError(f"{where}.shape", shape, f"one of {SHAPES}")
         pose = _toml.pose(_toml.require(table, "pose", where), f"{where}.pose")
         if shape == "box":
             size = _toml.vector(_toml.require(table, "size", where), f"{where}.size", 3)
@@ -142,7 +150,7 @@ def default_scene_path() -> Path:
 
 
 def load_scene(path: str | Path, robot: Robot | None = None) -> Problem:
-    """Load a scene TOML (CONTRACT §3) into a :class:`Problem`.
+    """Load a scene TOML (README, "Scene file") into a :class:`Problem`.
 
     Args:
         path: The scene file.
@@ -156,6 +164,7 @@ def load_scene(path: str | Path, robot: Robot | None = None) -> Problem:
     path = Path(path).expanduser().resolve()
     raw = _toml.read_toml(path, "scene file")
     where = path.name
+    _toml.check_keys(raw, SCENE_KEYS, f"{where}: ")
     robot_name = _toml.string(_toml.require(raw, "robot", where), f"{where}: robot")
     robot_file = find_robot_file(robot_name, relative_to=path.parent)
     if robot is None:
@@ -169,6 +178,7 @@ def load_scene(path: str | Path, robot: Robot | None = None) -> Problem:
     grasp = _toml.require(raw, "grasp", where)
     if not isinstance(grasp, dict):
         raise ConfigError(f"{where}: grasp", grasp, "a [grasp] table with a pose")
+    _toml.check_keys(grasp, GRASP_KEYS, f"{where}: grasp")
     grasp_pose = _toml.pose(_toml.require(grasp, "pose", f"{where}: grasp"), f"{where}: grasp.pose")
     hand = raw.get("hand", {})
     if not isinstance(hand, dict):

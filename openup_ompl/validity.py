@@ -16,7 +16,7 @@ from ompl import base as ob
 
 from openup_ompl.collision import CollisionWorld, ThreadContext
 from openup_ompl.exceptions import ConfigError
-from openup_ompl.hand_law import GoalDistance, HandLaw
+from openup_ompl.hand_law import HandLaw, NormalizedDistance
 from openup_ompl.motion_bound import arm_weights, distance_rates, motion_weights
 from openup_ompl.scene import Problem
 
@@ -106,7 +106,7 @@ class CoupledChecker:
         self._model = self.robot.model
         self._palm = self.robot.palm_frame_id
         start_q = self.robot.full_q(problem.start, self.law(1.0))
-        self.goal_distance = GoalDistance(
+        self.goal_distance = NormalizedDistance(
             problem.grasp,
             self.robot.palm_placement(self._model.createData(), start_q),
             self.law.distance,
@@ -127,17 +127,21 @@ class CoupledChecker:
         self.motions_checked = 0
 
     # -- single states ----------------------------------------------------------------
-    def distance(self, arm: np.ndarray) -> float:
+    def normalized_distance(self, arm: np.ndarray) -> float:
         """Normalised palm-to-grasp distance ``d`` (Algorithm 1) of an arm configuration."""
         context = self.world.context()
         context.q[self._arm_sel] = arm
         return self._palm_distance(context.data, context.q)
 
-    def full_q(self, arm: np.ndarray) -> np.ndarray:
+    def coupled_q(self, arm: np.ndarray) -> np.ndarray:
         """Full configuration for an arm configuration, the hand set by the law (a copy)."""
         context = self.world.context()
         self._fill(context, arm)
         return context.q.copy()
+
+    #: Old names (``distance`` and ``full_q`` each meant two things in the package).
+    distance = normalized_distance
+    full_q = coupled_q
 
     def _fill(self, context: ThreadContext, arm: object) -> float:
         """Write arm (any sequence of floats) and law-driven hand into ``context.q``;
@@ -198,7 +202,9 @@ class CoupledChecker:
         """
         if self.law.fixed is not None:
             return self.motion_weights
-        da, db = (self.distance(a), self.distance(b)) if ends is None else ends
+        da, db = (
+            (self.normalized_distance(a), self.normalized_distance(b)) if ends is None else ends
+        )
         spread = float(self.distance_rates @ np.abs(b - a))
         if 0.5 * (da + db - spread) > self.law.mga:
             return self.plateau_weights
@@ -232,13 +238,15 @@ class CoupledChecker:
         t = np.arange(1, n + 1, dtype=float)[:, None] / n
         return a + t * (b - a)
 
-    def full_qs(self, arms: np.ndarray) -> np.ndarray:
+    def coupled_qs(self, arms: np.ndarray) -> np.ndarray:
         """Full configurations, hand from the law, for arm states ``(n, dof)``: ``(nq, n)``."""
         arms = np.atleast_2d(arms)
         qs = self._arm_qs(arms)
         steps = self.distance_rates @ np.abs(np.diff(arms, axis=0)).T
         self._set_hands(qs, np.concatenate([[0.0], np.cumsum(steps)]))
         return qs
+
+    full_qs = coupled_qs  # the old name
 
     def _motion_qs(
         self,
@@ -349,7 +357,11 @@ class CoupledChecker:
         free, db = self._check_state(b)
         if not free:
             return False
-        ends = (math.inf, math.inf) if self.law.fixed is not None else (self.distance(a), db)
+        ends = (
+            (math.inf, math.inf)
+            if self.law.fixed is not None
+            else (self.normalized_distance(a), db)
+        )
         weights = self.weights(a, b, ends)
         if self._coarse:
             arms, qs = self._motion_qs(a, b, self.coarse_resolution, weights, ends)
@@ -419,7 +431,7 @@ class CoupledChecker:
                 continue
             middle = 0.5 * (start + end)
             self.states_checked += 1
-            level = self._level(self.full_q(middle), min(start_level, end_level))
+            level = self._level(self.coupled_q(middle), min(start_level, end_level))
             if level is None:
                 return False
             stack.append((start, start_level, middle, level))

@@ -33,7 +33,7 @@ def _grasp_state(scene: str) -> tuple[oo.Problem, np.ndarray]:
     problem = oo.load_scene(data_dir("scenes") / scene)
     setup = GraspPlanningSetup(problem)
     arm = setup.goal.solutions[0]
-    return problem, setup.checker.full_q(arm)
+    return problem, setup.checker.coupled_q(arm)
 
 
 @pytest.fixture(scope="module")

@@ -85,7 +85,8 @@ def test_hand_follows_law_along_plan(default_setup: oo.GraspPlanningSetup) -> No
     for row in plan.path[:: max(1, len(plan.path) // 20)]:
         arm = row[default_setup.problem.robot.arm_idx]
         np.testing.assert_allclose(
-            row[default_setup.problem.robot.hand_idx], law(default_setup.checker.distance(arm))
+            row[default_setup.problem.robot.hand_idx],
+            law(default_setup.checker.normalized_distance(arm)),
         )
 
 

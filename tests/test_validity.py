@@ -47,7 +47,7 @@ def test_ompl_checker_equals_law_and_collision(setup: oo.GraspPlanningSetup) -> 
     for _ in range(300):
         arm = rng.uniform(robot.arm_lower, robot.arm_upper)
         state[0:7] = arm.tolist()
-        q = robot.full_q(arm, setup.law(setup.checker.distance(arm)))
+        q = robot.full_q(arm, setup.law(setup.checker.normalized_distance(arm)))
         verdicts.append(si.isValid(state))
         assert verdicts[-1] == (not world.in_collision(q))
     assert 0 < sum(verdicts) < len(verdicts)
@@ -70,7 +70,7 @@ def test_motion_bound_covers_every_geometry(robot_setup: oo.GraspPlanningSetup) 
     data, geometry_data = model.createData(), geometry.createData()
 
     def placements(arm: np.ndarray) -> np.ndarray:
-        pin.updateGeometryPlacements(model, data, geometry, geometry_data, checker.full_q(arm))
+        pin.updateGeometryPlacements(model, data, geometry, geometry_data, checker.coupled_q(arm))
         return np.array([p.translation.copy() for p in geometry_data.oMg])
 
     rng = np.random.default_rng(1)
@@ -80,7 +80,7 @@ def test_motion_bound_covers_every_geometry(robot_setup: oo.GraspPlanningSetup) 
         centre = rng.uniform(robot.arm_lower, robot.arm_upper) if k % 2 else grasp
         a = np.clip(centre + rng.normal(0.0, 0.05, centre.size), robot.arm_lower, robot.arm_upper)
         b = np.clip(a + rng.normal(0.0, 0.1, a.size), robot.arm_lower, robot.arm_upper)
-        hand_a, hand_b = (checker.full_q(x)[robot.hand_idx] for x in (a, b))
+        hand_a, hand_b = (checker.coupled_q(x)[robot.hand_idx] for x in (a, b))
         hand_moved += not np.allclose(hand_a, hand_b)
         moved = np.max(np.linalg.norm(placements(b) - placements(a), axis=1))
         assert moved <= float(np.abs(b - a) @ checker.motion_weights) + 1e-12
@@ -88,7 +88,7 @@ def test_motion_bound_covers_every_geometry(robot_setup: oo.GraspPlanningSetup) 
         if checker.weights(a, b) is checker.plateau_weights:
             plateau += 1
             for t in np.linspace(0.0, 1.0, 11):
-                assert np.array_equal(checker.full_q(a + t * (b - a))[robot.hand_idx], hand_a)
+                assert np.array_equal(checker.coupled_q(a + t * (b - a))[robot.hand_idx], hand_a)
     assert hand_moved >= 50 and plateau >= 50
 
 
@@ -108,13 +108,13 @@ def test_batched_hands_are_the_laws(robot_setup: oo.GraspPlanningSetup) -> None:
         a = np.clip(centre + rng.normal(0.0, 0.01, grasp.size), robot.arm_lower, robot.arm_upper)
         b = a + rng.normal(0.0, 0.02 if k % 3 == 0 else 0.4, a.size)
         b = np.clip(b, robot.arm_lower, robot.arm_upper)
-        ends = (checker.distance(a), checker.distance(b))
+        ends = (checker.normalized_distance(a), checker.normalized_distance(b))
         arms, qs = checker._motion_qs(a, b, checker.resolution, checker.motion_weights, ends)
         path = np.concatenate([arms, [a], arms[::3]])
-        for batch, states in ((qs, arms), (checker.full_qs(path), path)):
-            expected = np.array([checker.full_q(x) for x in states]).T
+        for batch, states in ((qs, arms), (checker.coupled_qs(path), path)):
+            expected = np.array([checker.coupled_q(x) for x in states]).T
             np.testing.assert_allclose(batch, expected, rtol=0.0, atol=1e-12)
-        d = np.array([checker.distance(x) for x in arms])
+        d = np.array([checker.normalized_distance(x) for x in arms])
         below += bool(np.all(d <= robot_setup.law.mga))
         crossed += bool(np.any(d <= robot_setup.law.mga) and np.any(d > robot_setup.law.mga))
     assert below >= 3 and crossed >= 3
@@ -216,7 +216,7 @@ def test_accepted_motions_are_free_at_any_resolution(setup: oo.GraspPlanningSetu
         accepted += 1
         steps = 20 * checker.segment_count(a, b)
         for t in np.linspace(0.0, 1.0, steps + 1):
-            assert not exact.in_collision(checker.full_q(a + t * (b - a)))
+            assert not exact.in_collision(checker.coupled_q(a + t * (b - a)))
     assert accepted >= 5
 
 

@@ -17,7 +17,7 @@ import pinocchio as pin
 
 from openup_ompl._model import prismatic_joints
 from openup_ompl.exceptions import ConfigError
-from openup_ompl.hand_law import GoalDistance, HandLaw
+from openup_ompl.hand_law import HandLaw, NormalizedDistance
 from openup_ompl.plan import Plan, PlanFile
 from openup_ompl.scene import Shape
 
@@ -77,7 +77,7 @@ class PlanScene:
             pin.framesForwardKinematics(model, kinematics, q)
             placements.append(kinematics.oMf[plan.palm_frame_id].copy())
         law = plan.law
-        goal = GoalDistance(plan.grasp, placements[0], law.distance, law.rotation_weight)
+        goal = NormalizedDistance(plan.grasp, placements[0], law.distance, law.rotation_weight)
         palm = np.array([p.translation for p in placements])
         travel = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(palm, axis=0), axis=1))])
         shapes = [*plan.obstacles, *([plan.object] if plan.object is not None else [])]
