@@ -71,6 +71,7 @@ def test_suites_of_all_robots_make_distinct_problems() -> None:
     assert len(set(keys)) == len(problems)
 
 
+@pytest.mark.slow
 def test_two_problem_benchmark_database(tmp_path: Path) -> None:
     """2 problems x 2 planners x 2 runs give 8 runs rows with the extra columns filled."""
     problems = [default_problems_dir() / "table_pick.toml", default_problems_dir() / "clutter.toml"]
@@ -112,6 +113,7 @@ def test_two_problem_benchmark_database(tmp_path: Path) -> None:
     assert {r["problem"] for r in result.rows} == {"panda.table_pick", "panda.clutter"}
 
 
+@pytest.mark.slow
 def test_fixed_hand_configuration_is_a_separate_planner(tmp_path: Path) -> None:
     """--fixed-hand adds runs named <planner>_fixed_w whose hand stays at w."""
     result = run_benchmark(

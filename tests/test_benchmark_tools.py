@@ -4,11 +4,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
 from ompl import geometric as og
 from ompl import tools as ot
 from ompl import util as ompl_util
 
 import openup_ompl as oo
+
+pytestmark = pytest.mark.slow  # subprocesses, sweeps or OMPL benchmark runs
 
 ompl_util.setLogLevel(ompl_util.LOG_ERROR)
 
@@ -38,6 +41,9 @@ def test_ompl_benchmark_runs_ikbirrt_and_rrtconnect(tmp_path: Path) -> None:
         assert all(run["solved BOOLEAN"] in (1, "1", True) for run in runs)
     text = log.read_text()
     assert "geometric_IKBiRRT" in text and "geometric_RRTConnect" in text
-    assert all(
-        float(run.to_dict()["time REAL"]) < 5.0 for p in experiment.planners for run in p.runs
-    )
+    segments = [
+        int(run.to_dict()["solution segments INTEGER"])
+        for p in experiment.planners
+        for run in p.runs
+    ]
+    assert all(count >= 1 for count in segments)  # each run recorded its solution path

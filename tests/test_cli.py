@@ -12,6 +12,8 @@ import pytest
 
 import openup_ompl as ou
 
+pytestmark = pytest.mark.slow  # subprocesses, sweeps or OMPL benchmark runs
+
 SCENE = str(ou.default_scene_path())
 
 

@@ -12,6 +12,8 @@ from openup_ompl.benchmark import default_problems_dir, make_tasks
 from openup_ompl.exceptions import ConfigError
 from openup_ompl.executor import SweepFailed, Task, load_records, run_tasks, shard_path
 
+pytestmark = pytest.mark.slow  # subprocesses, sweeps or OMPL benchmark runs
+
 FUNCTION = "openup_ompl.executor:selfcheck_task"
 
 

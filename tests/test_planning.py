@@ -29,14 +29,18 @@ def default_setup(default_problem: oo.Problem) -> oo.GraspPlanningSetup:
     return oo.GraspPlanningSetup(default_problem)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("planner", ["ikbirrt", "rrtconnect"])
 def test_default_scene_solved_on_19_of_20_seeds(
     default_setup: oo.GraspPlanningSetup, planner: str, tmp_path: Path
 ) -> None:
-    """Both planners solve the default scene on >= 19 of 20 seeds in 5 s; every plan re-checks."""
-    assert solved_and_rechecked(default_setup, planner, SEEDS, 5.0, tmp_path) >= 19
+    """Both planners solve the default scene on >= 19 of 20 seeds; every plan re-checks.
+    The time limit (60 s, ~2000x the median solve) only guards against a hang: the count
+    does not depend on the machine's speed or load."""
+    assert solved_and_rechecked(default_setup, planner, SEEDS, 60.0, tmp_path) >= 19
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scene", ["contract_example.toml", "panda_box_side.toml"])
 @pytest.mark.parametrize("planner", ["ikbirrt", "rrtconnect"])
 def test_other_scenes_solved_and_recheck(scene: str, planner: str, tmp_path: Path) -> None:
@@ -52,6 +56,7 @@ def test_simplified_plan_rechecks(default_setup: oo.GraspPlanningSetup, tmp_path
     assert_plan_rechecks(plan, tmp_path)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("planner", ["ikbirrt", "rrtconnect"])
 def test_open_arrival_plans_reach_the_grasp_opened_by_u(planner: str, tmp_path: Path) -> None:
     """With the open-arrival variant the hand reaches the grasp at c + (w - c) u on the
@@ -100,12 +105,15 @@ def test_coupling_matters(tmp_path: Path) -> None:
     assert error.value.in_collision > 0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("planner", ["rrt", "rrtstar", "bitstar", "kpiece1", "bkpiece1"])
 def test_other_ompl_planners_use_ik_goal_region(
     default_setup: oo.GraspPlanningSetup, planner: str, tmp_path: Path
 ) -> None:
     """OMPL planners that take sampleable goals plan with the IK goal region."""
-    plan = default_setup.solve(time_limit=10.0, planner=planner, seed=1)
+    # OMPL's process-wide generator is not seeded here: 60 s (a median solve takes under
+    # 1 s) only guards against a hang, so that load on the machine cannot fail the test.
+    plan = default_setup.solve(time_limit=60.0, planner=planner, seed=1)
     assert_plan_rechecks(plan, tmp_path)
 
 
@@ -202,6 +210,7 @@ def test_plan_file_follows_contract(default_setup: oo.GraspPlanningSetup, tmp_pa
     )
 
 
+@pytest.mark.slow
 def test_goal_tree_retreats_against_the_approach(tmp_path: Path) -> None:
     """Each IK root of IKBiRRT's goal tree grows a straight retreat of the palm against
     the robot's approach axis; on a shelf, where the close hand meets the object from the

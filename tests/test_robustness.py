@@ -25,6 +25,8 @@ from openup_ompl.robustness import (
     run_robustness,
 )
 
+pytestmark = pytest.mark.slow  # subprocesses, sweeps or OMPL benchmark runs
+
 SMALL = RobustnessOptions(us=(0.0, 0.3), deltas=(0.0, 0.02), seeds=2, time_limit=5.0)
 
 

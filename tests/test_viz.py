@@ -119,6 +119,7 @@ def _headless(page: Path, tmp_path: Path, *args: str) -> subprocess.CompletedPro
     return subprocess.run(command, capture_output=True, text=True, timeout=180)
 
 
+@pytest.mark.slow
 def test_html_renders_the_scene_in_headless_chromium(shown, tmp_path):
     """Chromium renders the robot (its dark joint covers) and the orange object, not a
     blank page, and the page reports no script error."""
