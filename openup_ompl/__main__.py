@@ -16,7 +16,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from openup_ompl.exceptions import MissingExtra, OpenUpError, PlanningFailed
+from openup_ompl.exceptions import ConfigError, MissingExtra, OpenUpError, PlanningFailed
 
 
 def _parsed(text: str, kind: type, ok: Callable[[float], bool], expected: str) -> Any:
@@ -42,15 +42,60 @@ def _seed(text: str) -> int:
     return int(_parsed(text, int, lambda v: 0 <= v < 2**31, "an integer seed in [0, 2^31)"))
 
 
+class _Formatter(argparse.HelpFormatter):
+    """Help that shows each option's default, unless its text already says it or there
+    is none to show."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        default = action.default
+        if (
+            "(default" in text
+            or not action.option_strings
+            or default in (None, False, argparse.SUPPRESS)
+        ):
+            return text
+        shown = " ".join(str(x) for x in default) if isinstance(default, list) else default
+        return f"{text} (default: {shown})"
+
+
 class _Parser(argparse.ArgumentParser):
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("formatter_class", _Formatter)
+        super().__init__(*args, **kwargs)
+
     def error(self, message: str) -> None:  # type: ignore[override]
         self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def _file_out(path: Path | None) -> None:
+    """Refuse, before any work, an output file that cannot be written."""
+    if path is None:
+        return
+    if path.is_dir():
+        raise ConfigError("--out", str(path), "a file to write (this is a directory)")
+    parent = next((p for p in path.parents if p.exists()), None)
+    if parent is not None and not parent.is_dir():
+        raise ConfigError("--out", str(path), f"a path whose parent is a directory ({parent})")
+
+
+def _dir_out(path: Path) -> None:
+    """Refuse, before any work, an output directory that is an existing file."""
+    for candidate in (path, *path.parents):
+        if candidate.exists() and not candidate.is_dir():
+            raise ConfigError("--out", str(path), f"a directory ({candidate} is a file)")
 
 
 def build_parser() -> argparse.ArgumentParser:
     from openup_ompl.planning import PLANNERS
 
-    parser = _Parser(prog="openup-ompl", description=__doc__.splitlines()[0] if __doc__ else None)
+    parser = _Parser(
+        prog="openup-ompl",
+        description="Reach-to-grasp planning under object-pose uncertainty on OMPL: the hand"
+        " opens with the uncertainty u (Open Up!).",
+        epilog="Run 'openup-ompl COMMAND --help' for a command's options. Bad input exits"
+        " with status 2 and one line on stderr, a planning failure with status 1.",
+    )
     commands = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     def planning_options(sub: argparse.ArgumentParser, default_time: float) -> None:
@@ -65,7 +110,7 @@ def build_parser() -> argparse.ArgumentParser:
             default="ikbirrt",
             choices=PLANNERS,
             metavar="NAME",
-            help=f"one of {', '.join(PLANNERS)} (default: ikbirrt)",
+            help=f"one of {', '.join(PLANNERS)}",
         )
         sub.add_argument(
             "--time", type=_positive_float, default=default_time, help="planning time limit [s]"
@@ -87,7 +132,7 @@ def build_parser() -> argparse.ArgumentParser:
         )
 
     plan = commands.add_parser("plan", help="plan a scene file and write the plan file")
-    plan.add_argument("scene", type=Path, help="scene TOML (CONTRACT section 3)")
+    plan.add_argument("scene", type=Path, help="scene TOML (README, Files: Scene)")
     planning_options(plan, 5.0)
     plan.add_argument("--out", type=Path, default=None, help="plan JSON to write")
     plan.set_defaults(handler=_plan_command)
@@ -100,7 +145,7 @@ def build_parser() -> argparse.ArgumentParser:
     show = commands.add_parser(
         "show", help="write a plan's pictures: HTML animation, storyboard, hand law figure"
     )
-    show.add_argument("plan", type=Path, help="plan JSON (CONTRACT section 4)")
+    show.add_argument("plan", type=Path, help="plan JSON (README, Files: Plan)")
     show.add_argument(
         "--out", type=Path, default=None, help="output directory (default: the plan's)"
     )
@@ -221,6 +266,7 @@ def build_parser() -> argparse.ArgumentParser:
 def _robustness_command(args: argparse.Namespace) -> int:
     from openup_ompl.robustness import RobustnessOptions, markdown_tables, run_robustness
 
+    _dir_out(args.out)
     given = {"us": args.u, "deltas": args.delta, "yaws": args.yaw}
     sweep: dict[str, Any] = {key: tuple(value) for key, value in given.items() if value}
     options = RobustnessOptions(
@@ -255,6 +301,7 @@ def _benchmark_command(args: argparse.Namespace) -> int:
     """Run the benchmark, then print the table and where the outputs are."""
     from openup_ompl.benchmark import default_problems, markdown_table, run_benchmark
 
+    _dir_out(args.out)
     problems = args.problems or default_problems()
     result = run_benchmark(
         problems,
@@ -302,16 +349,20 @@ def _summary(plan) -> str:  # type: ignore[no-untyped-def]
 
 
 def _plan_command(args: argparse.Namespace) -> int:
+    _file_out(args.out)
     _, plan = _plan(args, args.scene)
     print(_summary(plan))
     if args.out is not None:
         print(f"plan written to {plan.save(args.out)}")
+    else:
+        print("openup-ompl: no --out given: the plan was not saved", file=sys.stderr)
     return 0
 
 
 def _demo_command(args: argparse.Namespace) -> int:
     from openup_ompl.scene import default_scene_path
 
+    _dir_out(args.out)
     _, plan = _plan(args, default_scene_path())
     print(_summary(plan))
     out: Path = args.out

@@ -307,7 +307,7 @@ class HandLaw:
         return dataclasses.replace(self, **changes)  # type: ignore[arg-type]
 
     def to_dict(self) -> dict[str, object]:
-        """The law as written in a plan file (README, "Plan file": ``hand_law``)."""
+        """The law as written in a plan file (README, Files: Plan, ``hand_law``)."""
         values = {name: getattr(self, name) for name in TABLE_FIELDS}
         return {k: v.tolist() if isinstance(v, np.ndarray) else v for k, v in values.items()}
 

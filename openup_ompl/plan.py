@@ -1,4 +1,4 @@
-"""Plans: the result of a solve, and the plan file (README, "Plan file"): its writer
+"""Plans: the result of a solve, and the plan file (README, Files: Plan): its writer
 (:meth:`Plan.save`) and its reader (:class:`PlanFile`), side by side."""
 
 from __future__ import annotations
@@ -66,7 +66,7 @@ class Plan:
         return self.path[:, self.problem.robot.hand_idx]
 
     def to_dict(self) -> dict[str, Any]:
-        """The plan file's contents (README, "Plan file")."""
+        """The plan file's contents (README, Files: Plan)."""
         robot = self.problem.robot
         spec = robot.spec
         scene_object = self.problem.object
@@ -99,7 +99,7 @@ class Plan:
         }
 
     def save(self, path: str | Path) -> Path:
-        """Write the plan file (JSON, README "Plan file"), atomically; returns its path."""
+        """Write the plan file (JSON, README, Files: Plan), atomically; returns its path."""
         path = Path(path)
         if not np.all(np.isfinite(self.path)):
             raise ConfigError("plan path", "non-finite values", "a finite path")

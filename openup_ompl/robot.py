@@ -1,4 +1,4 @@
-"""Robot model: a robot file (README, "Robot definition") loaded into Pinocchio and Coal.
+"""Robot model: a robot file (README, Files: Robot) loaded into Pinocchio and Coal.
 
 The arm joints are OMPL's state space; the hand joints follow the hand law. Both map
 into Pinocchio's configuration vector ``q`` through :attr:`Robot.arm_idx` and

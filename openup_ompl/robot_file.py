@@ -1,4 +1,4 @@
-"""Robot files (README, "Robot definition"): the TOML format read into a :class:`RobotSpec`.
+"""Robot files (README, Files: Robot): the TOML format read into a :class:`RobotSpec`.
 
 Only reading and checking: loading the URDF is :mod:`openup_ompl.urdf`, the loaded model
 :mod:`openup_ompl.robot`.
@@ -176,7 +176,7 @@ class RobotSpec:
 
     @classmethod
     def from_file(cls, path: Path) -> RobotSpec:
-        """Read and validate a robot TOML file (CONTRACT §1)."""
+        """Read and validate a robot TOML file (README, Files: Robot)."""
         path = Path(path).resolve()
         raw = _toml.read_toml(path, "robot file")
         where = path.name

@@ -1,4 +1,4 @@
-"""Scene files (README, "Scene file"): robot, start, grasp pose, hand law, object and
+"""Scene files (README, Files: Scene): robot, start, grasp pose, hand law, object and
 obstacles. Every table rejects keys it does not know, naming the nearest valid one."""
 
 from __future__ import annotations
@@ -150,7 +150,7 @@ def default_scene_path() -> Path:
 
 
 def load_scene(path: str | Path, robot: Robot | None = None) -> Problem:
-    """Load a scene TOML (README, "Scene file") into a :class:`Problem`.
+    """Load a scene TOML (README, Files: Scene) into a :class:`Problem`.
 
     Args:
         path: The scene file.
