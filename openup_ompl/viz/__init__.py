@@ -13,7 +13,7 @@ from pathlib import Path
 
 from openup_ompl.viz._mpl import _pyplot
 from openup_ompl.viz._scene import PlanScene
-from openup_ompl.viz.html import HtmlOptions, write_html
+from openup_ompl.viz.html import HtmlOptions, _meshcat, write_html
 from openup_ompl.viz.law import plot_hand_law
 from openup_ompl.viz.storyboard import StoryboardOptions, write_storyboard
 
@@ -47,8 +47,6 @@ def show(
             loaded.
         MissingExtra: matplotlib or meshcat is not installed.
     """
-    from openup_ompl.viz.html import _meshcat
-
     # A missing extra is reported before anything is written.
     _pyplot()
     _meshcat()

@@ -48,13 +48,7 @@ class PlanScene:
 
     @classmethod
     def from_file(cls, path: str | Path) -> PlanScene:
-        """Read and check a plan file (:meth:`openup_ompl.plan.PlanFile.read`).
-
-        Raises:
-            ConfigError: The file is not a readable plan, a key is missing or holds a bad
-                value, or its URDF cannot be loaded.
-            JointNotFound, FrameNotFound: The plan names a joint or frame its URDF lacks.
-        """
+        """Read a plan file; raises what :meth:`openup_ompl.plan.PlanFile.read` raises."""
         return cls.from_plan_file(PlanFile.read(path))
 
     @classmethod
