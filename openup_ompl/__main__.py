@@ -140,6 +140,13 @@ def build_parser() -> argparse.ArgumentParser:
     demo = commands.add_parser("demo", help="plan the default scene; write its plan and pictures")
     planning_options(demo, 5.0)
     demo.add_argument("--out", type=Path, default=Path("openup-demo"), help="output directory")
+    demo.add_argument(
+        "--scene",
+        type=Path,
+        default=None,
+        help="scene TOML (default: scenes/panda_can.toml, the Panda, whose fingers open by"
+        " millimetres; scenes/lwa3_sdh_can.toml shows the paper's SDH hand opening widely)",
+    )
     demo.set_defaults(handler=_demo_command)
 
     show = commands.add_parser(
@@ -363,7 +370,7 @@ def _demo_command(args: argparse.Namespace) -> int:
     from openup_ompl.scene import default_scene_path
 
     _dir_out(args.out)
-    _, plan = _plan(args, default_scene_path())
+    _, plan = _plan(args, args.scene or default_scene_path())
     print(_summary(plan))
     out: Path = args.out
     path = plan.save(out / "plan.json")
