@@ -6,6 +6,7 @@ The figures live in :mod:`openup_ompl.viz.law`, matplotlib behind
 """
 
 from openup_ompl.exceptions import MissingExtra
+from openup_ompl.viz._mpl import _pyplot, _save
 from openup_ompl.viz.law import plot_hand_law, plot_law
 
-__all__ = ["MissingExtra", "plot_hand_law", "plot_law"]
+__all__ = ["MissingExtra", "_pyplot", "_save", "plot_hand_law", "plot_law"]
