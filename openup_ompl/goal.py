@@ -15,7 +15,7 @@ import numpy as np
 from ompl import base as ob
 
 from openup_ompl.exceptions import UnreachableGrasp
-from openup_ompl.hand_law import palm_distance
+from openup_ompl.hand_law import ROTATION_WEIGHT, palm_distance
 from openup_ompl.ik import IKSolver
 from openup_ompl.validity import CoupledChecker
 
@@ -96,7 +96,9 @@ class GraspGoal:
         q = self._q
         q[self.checker.robot.arm_idx] = arm
         placement = self.checker.robot.palm_placement(self._data, q)
-        return palm_distance(placement, self._target_position, self._target_rotation_t)
+        return palm_distance(
+            placement, self._target_position, self._target_rotation_t, ROTATION_WEIGHT
+        )
 
     distance = task_error  # the old name ("distance" also meant the normalised d)
 
