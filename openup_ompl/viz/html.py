@@ -209,6 +209,7 @@ def write_html(scene: PlanScene, out: str | Path, options: HtmlOptions | None = 
             + f" · seed {scene.plan.seed} · {len(scene.path)} states"
         ),
         "fps": options.fps,
+        "hold": round(options.hold * options.fps),  # key frames of each pause
         "camera": _camera(scene),
         "frames": _readout(scene, rows),
     }
@@ -278,8 +279,13 @@ function showFrame() {
   const f = INFO.frames, n = f.d.length;
   const k = Math.max(0, Math.min(n - 1, Math.round(viewer.animator.time * INFO.fps)));
   const mga = f.d[k] <= f.mga ? " (≤ mga)" : "";
+  // The slider's time includes a pause at each end: say so, so that the panel and the
+  // slider agree (the robot stands at its start for the first pause).
+  const phase =
+    k < INFO.hold ? " (pause at the start)" : k >= n - INFO.hold ? " (at the grasp)" : "";
   document.getElementById("readout").textContent =
-    "reach " + Math.round(100 * f.progress[k]) + " % · d = " + f.d[k].toFixed(2) + mga +
+    "t = " + viewer.animator.time.toFixed(2) + " s" + phase + " · reach " +
+    Math.round(100 * f.progress[k]) + " % · d = " + f.d[k].toFixed(2) + mga +
     " · hand " + f.hand[k] + " (" + Math.round(100 * f.opening[k]) + " % of c → w)";
   const cursor = document.getElementById("cursor");
   const x = 4 + f.progress[k] * 292;
