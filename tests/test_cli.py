@@ -136,3 +136,37 @@ def test_demo_writes_its_plan(tmp_path):
     assert data["format"] == "openup-plan/1"
     assert data["grasp_pose"] == [0.6, 0.0, 0.19, 1.0, 0.0, 0.0, 0.0]
     assert len(data["path"]) >= 2
+
+
+def test_plan_to_a_directory_fails_before_planning(tmp_path):
+    """`plan --out DIR` exits 2 with one line naming --out, and leaves no file behind."""
+    (tmp_path / "out").mkdir()
+    result = run_cli("plan", SCENE, "--out", "out", cwd=tmp_path)
+    assert_one_error_line(result)
+    assert result.returncode == 2 and "--out" in result.stderr
+    assert "plan written" not in result.stdout  # refused before planning
+    assert sorted(p.name for p in tmp_path.rglob("*")) == ["out"]
+
+
+def test_demo_into_a_file_fails_before_planning(tmp_path):
+    """`demo --out FILE` (an existing file) exits 2 with one line, before planning."""
+    (tmp_path / "taken").write_text("x")
+    result = run_cli("demo", "--out", "taken", cwd=tmp_path)
+    assert_one_error_line(result)
+    assert result.returncode == 2 and "taken" in result.stderr
+    assert result.stdout == ""
+
+
+def test_plan_without_out_says_the_plan_was_not_saved(tmp_path):
+    """`plan` without --out plans, exits 0 and says on stderr that nothing was saved."""
+    result = run_cli("plan", SCENE, "--seed", "1", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert "not saved" in result.stderr
+    assert not list(tmp_path.iterdir())
+
+
+def test_help_shows_no_markup_and_the_defaults(tmp_path):
+    """The top-level help has no RST markup; a command's help shows its defaults."""
+    top = run_cli("--help", cwd=tmp_path).stdout
+    assert "``" not in top and "robustness" in top
+    assert "(default: 5.0)" in run_cli("plan", "--help", cwd=tmp_path).stdout

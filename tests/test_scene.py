@@ -150,6 +150,14 @@ BAD_EDITS = {
     "unknown hand key": ("u = 0.3", "u = 0.3\nspread = 1.0", "hand.spread"),
     "open_arrival not a bool": ("u = 0.3", 'u = 0.3\nopen_arrival = "yes"', "hand.open_arrival"),
     "c of wrong length": ("c = [0.035, 0.035]", "c = [0.035]", "hand.c"),
+    "typo at the top level": (CAN_START, CAN_START.replace("start", "strat"), "strat"),
+    "typo in the object": ("radius = 0.03", "raduis = 0.03", "object.raduis"),
+    "a box with a radius": (
+        "size = [0.04, 0.4, 0.22]",
+        "size = [0.04, 0.4, 0.22]\nradius = 1",
+        "obstacles[1].radius",
+    ),
+    "typo in the grasp": ("[grasp]\n", "[grasp]\nposition = 1\n", "grasp.position"),
     "duplicate obstacles": ('name = "wall"', 'name = "table"', "table"),
     "object named like an obstacle": ('name = "can"', 'name = "wall"', "wall"),
     "start of 6": (CAN_START, "start = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571]", "start"),
@@ -229,3 +237,12 @@ def test_object_physics_keys_default_and_validate(tmp_path):
     bad.write_text(text.replace('name = "can"', 'name = "can"\nmass = -1.0'))
     with pytest.raises(oo.ConfigError, match="object.mass"):
         oo.load_scene(bad)
+
+
+def test_unknown_key_names_the_nearest_valid_one(panda, default_scene_text, write_file):
+    """A typo in a scene key is refused, naming the key and the valid key it is nearest."""
+    path = write_file(
+        "typo.toml", edited(default_scene_text, CAN_START, CAN_START.replace("start", "strat"))
+    )
+    with pytest.raises(ou.ConfigError, match="did you mean 'start'"):
+        ou.load_scene(path, robot=panda)
