@@ -249,3 +249,32 @@ def test_bad_retreat_options_are_named() -> None:
     for field, value in (("retreat", -0.1), ("retreat", float("nan")), ("retreat_step", 0.0)):
         with pytest.raises(oo.ConfigError, match=field):
             oo.IKBiRRTOptions(**{field: value})
+
+
+def test_planning_options_equal_the_keyword_form(default_problem: oo.Problem) -> None:
+    """GraspPlanningSetup(problem, PlanningOptions(...)) is the keyword form's setup."""
+    keywords = oo.GraspPlanningSetup(default_problem, u=0.5, fixed_hand="w", planner_range=0.3)
+    options = oo.PlanningOptions(u=0.5, fixed_hand="w", planner_range=0.3)
+    frozen = oo.GraspPlanningSetup(default_problem, options)
+    assert keywords.options == frozen.options == options
+    assert keywords.law.to_dict() == frozen.law.to_dict()
+    assert oo.GraspPlanningSetup(default_problem, 0.5).law.u == 0.5  # the old positional u
+
+
+@pytest.mark.parametrize(
+    ("changes", "named"),
+    [({"planner": "prm"}, "deadlocks"), ({"time_limit": 0}, "time_limit"), ({"u": 2}, "u")],
+)
+def test_bad_planning_options_are_named(changes: dict, named: str) -> None:
+    """PlanningOptions validates each value once, naming it."""
+    with pytest.raises(oo.ConfigError, match=named):
+        oo.PlanningOptions(**changes)
+
+
+def test_verify_has_its_own_error(default_setup: oo.GraspPlanningSetup) -> None:
+    """A path that fails the re-check raises VerifyFailed (a PlanningFailed), with the reason."""
+    plan = default_setup.solve(planner="ikbirrt", seed=2)
+    with pytest.raises(oo.VerifyFailed, match="does not start at the start") as caught:
+        default_setup.verify(plan.path[1:])
+    assert isinstance(caught.value, oo.PlanningFailed)
+    assert "0.0 s" not in str(caught.value)
