@@ -215,7 +215,34 @@ def build_parser() -> argparse.ArgumentParser:
     )
     robust.add_argument("--quiet", action="store_true", help="no progress on stderr")
     robust.set_defaults(handler=_robustness_command)
+
+    perceive = commands.add_parser(
+        "perceive",
+        help="simulated depth view of the scene's object, superquadric fit, covariance;"
+        " writes DIR/perceived.toml with the estimated pose and u",
+    )
+    perceive.add_argument("scene", type=Path, help="scene TOML (may hold a [camera] table)")
+    perceive.add_argument(
+        "--camera",
+        nargs="+",
+        default=None,
+        metavar="KEY=VALUE",
+        help="camera options over the scene's [camera] (e.g. distance=0.9 elevation=50"
+        " width=320 height=240 position=[1,0,0.8])",
+    )
+    perceive.add_argument(
+        "--noise", type=float, default=1.0, help="sensor noise scale (1: Kinect v1, 0: none)"
+    )
+    perceive.add_argument("--seed", type=_seed, default=1, help="seed of the sensor noise")
+    perceive.add_argument("--out", type=Path, required=True, help="output directory")
+    perceive.set_defaults(handler=_perceive_command)
     return parser
+
+
+def _perceive_command(args: argparse.Namespace) -> int:
+    from openup_ompl.perception.cli import perceive_command
+
+    return perceive_command(args)
 
 
 def _robustness_command(args: argparse.Namespace) -> int:
