@@ -21,14 +21,22 @@ standard deviations (0: a noise-free sensor, the dropout kept).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from openup_ompl.exceptions import ConfigError
 from openup_ompl.perception.camera import DepthView
 
-__all__ = ["KINECT_FOCAL", "NoiseOptions", "PointCloud", "kinect_sigmas", "noisy_cloud"]
+__all__ = [
+    "KINECT_FOCAL",
+    "NoiseOptions",
+    "PointCloud",
+    "kinect_sigmas",
+    "noisy_cloud",
+    "normal_sigma",
+]
 
 #: The Kinect v1's depth focal length [px] (640 x 480), the unit of Nguyen's lateral noise.
 KINECT_FOCAL = 585.0
@@ -128,3 +136,32 @@ def noisy_cloud(
         dropped=dropped,
         scene_points=world[~on_object],
     )
+
+
+def normal_sigma(
+    position: np.ndarray, rotation: np.ndarray, options: NoiseOptions | None = None
+) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    """The sensor's noise along a surface normal, for the fit's weights.
+
+    Returns ``sigma(points, normals)`` [m]: at each measured point (world frame) and unit
+    normal of the fitted surface, the incidence is the angle between the camera's ray and
+    the normal (capped at ``max_incidence``) and the noise covariance ``diag(sigma_L^2,
+    sigma_L^2, sigma_z^2)`` (camera frame) is projected on the normal. Only what a real
+    system has is used: the measured points, the fit and the sensor's model.
+    """
+    options = options or NoiseOptions()
+    cap = math.radians(options.max_incidence)
+
+    def sigma(points: np.ndarray, normals: np.ndarray) -> np.ndarray:
+        camera = (points - position) @ rotation
+        depth = np.maximum(camera[:, 2], 1e-3)
+        rays = camera / np.linalg.norm(camera, axis=1, keepdims=True)
+        normal = normals @ rotation
+        incidence = np.minimum(np.arccos(np.clip(np.abs(np.sum(rays * normal, 1)), 0, 1)), cap)
+        axial, lateral = kinect_sigmas(depth, incidence, replace(options, scale=1.0))
+        variance = (
+            lateral**2 * (normal[:, 0] ** 2 + normal[:, 1] ** 2) + axial**2 * normal[:, 2] ** 2
+        )
+        return np.sqrt(variance)
+
+    return sigma

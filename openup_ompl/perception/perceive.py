@@ -19,7 +19,7 @@ import pinocchio as pin
 from openup_ompl import _toml
 from openup_ompl.exceptions import ObjectNotVisible, TooFewPoints
 from openup_ompl.perception.camera import CameraOptions, DepthCamera, DepthView
-from openup_ompl.perception.noise import NoiseOptions, PointCloud, noisy_cloud
+from openup_ompl.perception.noise import NoiseOptions, PointCloud, noisy_cloud, normal_sigma
 from openup_ompl.perception.superquadric import (
     N_PARAMETERS,
     FitOptions,
@@ -107,6 +107,7 @@ def perceive(
     rng: np.random.Generator | None = None,
     depth_camera: DepthCamera | None = None,
     silhouette: bool = True,
+    weighted: bool = True,
 ) -> Perception:
     """Look at the scene's object once, fit it, and choose ``u``.
 
@@ -118,6 +119,7 @@ def perceive(
         rng: The noise's random generator (default: seed 0).
         depth_camera: An already built camera (many views of one scene).
         silhouette: Use the view's free space in the fit (:class:`Silhouette`).
+        weighted: Weight the fit by the sensor's noise model (:func:`normal_sigma`).
 
     Raises:
         ObjectNotVisible: No point of the object is measured.
@@ -140,7 +142,8 @@ def perceive(
     if cloud.points.shape[0] < 2 * N_PARAMETERS:
         raise TooFewPoints(cloud.points.shape[0], 2 * N_PARAMETERS)
     shape = silhouette_of(view, noise, cam.options) if silhouette else None
-    result = fit_superquadric(cloud.points, fit, shape)
+    weights = normal_sigma(cam.position, cam.rotation, noise) if weighted else None
+    result = fit_superquadric(cloud.points, fit, shape, weights)
     pose = estimated_pose(result, problem.object)
     u = u_from_covariance(
         result.position_covariance,
