@@ -76,7 +76,7 @@ class FitOptions:
         starts: Principal axes tried as the superquadric's z axis (1 to 3).
         trial_evaluations: Residual evaluations of each start before the lowest-cost one
             is solved to convergence.
-        max_evaluations: Residual evaluations of that solve (and of the weighted one).
+        max_evaluations: Residual evaluations of that solve.
         covariance: ``"classic"``: ``s^2 (J^T J)^-1``; ``"sandwich"``: ``(J^T J)^-1 J^T
             diag(r^2) J (J^T J)^-1 n / (n - 11)`` (White's estimator: the same when every
             residual has one variance, right when they differ, as the depth noise does
@@ -88,7 +88,7 @@ class FitOptions:
     min_size: float = 0.002  # [m]
     max_size: float = 1.0  # [m]
     starts: int = 3
-    trial_evaluations: int = 8
+    trial_evaluations: int = 5
     max_evaluations: int = 200
     covariance: str = "classic"
 
@@ -271,7 +271,7 @@ class Silhouette:
         position: np.ndarray,
         rotation: np.ndarray,
         intrinsics: tuple[float, float, float, float],
-        samples: tuple[int, int] = (12, 24),
+        samples: tuple[int, int] = (10, 20),
     ) -> Silhouette:
         """From ``(H, W)`` masks of the object's pixels and of pixels whose hit is in
         front of the object (where it may hide)."""
@@ -439,9 +439,9 @@ def fit_superquadric(
 ) -> SuperquadricFit:
     """Fit a superquadric to ``points`` [m] (world frame) by least squares.
 
-    With a sensor ``noise`` model the fit is refined once by weighted least squares: each
-    point's residual divided by its noise's standard deviation along the fitted surface's
-    normal (relative to their mean, so that residuals stay in metres). The depth noise
+    With a sensor ``noise`` model the fit is a weighted least squares one: each
+    point's residual divided by its noise's standard deviation along the normal of the
+    best start's surface (relative to their mean, so that residuals stay in metres). The depth noise
     varies tenfold between a surface seen face-on and one seen at grazing incidence, and
     the grazing points at the object's edges are those that fix its position across the
     view: unweighted, ``s^2`` (the average noise) understates their noise and the
@@ -472,13 +472,13 @@ def fit_superquadric(
     high = np.array([options.max_size] * 3 + [options.max_exponent] * 2 + [np.inf] * 6)
     evaluations = 0
 
-    def solve(x0: np.ndarray, reference: np.ndarray, budget: int, *extra: Any) -> Any:
+    def solve(x0: np.ndarray, reference: np.ndarray, budget: int, free: Any, *extra: Any) -> Any:
         nonlocal evaluations
         result = least_squares(
             _residuals,
             np.clip(x0, low + 1e-9, high - 1e-9),
             bounds=(low, high),
-            args=(points, reference, silhouette, *extra),
+            args=(points, reference, free, *extra),
             x_scale=_X_SCALE,
             max_nfev=budget,
             method="trf",
@@ -489,21 +489,22 @@ def fit_superquadric(
         evaluations += int(result.nfev)
         return result
 
-    # Every start gets a few steps; the most promising is solved to convergence.
+    # Every start gets a few steps on the points alone; the most promising is solved to
+    # convergence, with the free space.
     trials = [
-        (solve(x0, reference, options.trial_evaluations), reference)
+        (solve(x0, reference, options.trial_evaluations, None), reference)
         for x0, reference in _starts(points, options)
     ]
     first, reference = min(trials, key=lambda trial: float(trial[0].cost))
-    result = solve(first.x, reference, options.max_evaluations)
     weights = None
     if noise is not None:
-        fitted = _split(result.x, reference)
+        # Weights from the best start's surface: its normals are already close enough.
+        fitted = _split(first.x, reference)
         local = fitted.local(points)
         normals = _normals(local, fitted.sizes, *fitted.exponents) @ fitted.rotation.T
         sigma = noise(points, normals)
         weights = float(np.mean(sigma)) / sigma
-        result = solve(result.x, reference, options.max_evaluations, weights)
+    result = solve(first.x, reference, options.max_evaluations, silhouette, weights)
     superquadric = _split(result.x, reference)
     # Re-linearise about the fitted orientation: the rotation block is then in its frame.
     x = result.x.copy()
