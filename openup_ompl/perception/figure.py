@@ -61,8 +61,12 @@ def plot_perception(perception: Perception, truth: Shape, out: Path, title: str 
     fitted = perception.fit.superquadric.surface(20)
     true = shape_superquadric(truth).surface(20)
     ax.scatter(*points.T, s=2, c="tab:blue", label="object points")
-    ax.plot_wireframe(*np.moveaxis(fitted, -1, 0), color="tab:orange", lw=0.5, label="fit")
-    ax.plot_wireframe(*np.moveaxis(true, -1, 0), color="0.5", lw=0.3, label="true object")
+    ax.plot_wireframe(
+        *np.moveaxis(fitted, -1, 0), color="tab:orange", lw=0.6, rstride=3, cstride=4, label="fit"
+    )
+    ax.plot_wireframe(
+        *np.moveaxis(true, -1, 0), color="k", lw=0.4, rstride=3, cstride=4, label="true object"
+    )
     low, high = true.reshape(-1, 3).min(0), true.reshape(-1, 3).max(0)
     middle, span = (low + high) / 2, float(np.max(high - low)) * 0.75
     for setter, m in zip((ax.set_xlim, ax.set_ylim, ax.set_zlim), middle, strict=True):
@@ -73,7 +77,17 @@ def plot_perception(perception: Perception, truth: Shape, out: Path, title: str 
     ax.legend(loc="upper left", fontsize=8)
     top = fig.add_subplot(1, 2, 2)
     top.scatter(points[:, 0], points[:, 1], s=2, c="tab:blue")
-    top.plot(true[..., 0].ravel(), true[..., 1].ravel(), ",", color="0.6")
+    outline = _ellipse(truth.pose[:2], np.eye(2), 1.0)
+    if truth.shape != "box":
+        assert truth.radius is not None
+        top.plot(
+            *(truth.pose[:2] + (outline - truth.pose[:2]) * truth.radius).T,
+            "k",
+            lw=0.8,
+            label="true object (top view)",
+        )
+    fitted_top = fitted[fitted.shape[0] // 2]  # the equator of the fit
+    top.plot(fitted_top[:, 0], fitted_top[:, 1], color="tab:orange", lw=0.8, label="fit")
     estimate = perception.fit.superquadric.position
     ellipse = _ellipse(estimate[:2], perception.fit.position_covariance[:2, :2], ELLIPSE_CHI2)
     top.plot(*ellipse.T, color="tab:red", label="2-sigma ellipse (95 %)")
