@@ -220,3 +220,41 @@ def test_perceive_cli_bad_camera_key_exits_2(tmp_path: Path, capsys: pytest.Capt
     status = main(["perceive", str(LWA3_SCENE), "--camera", "zoom=2", "--out", str(tmp_path)])
     assert status == 2
     assert "camera.zoom" in capsys.readouterr().err
+
+
+def test_at_estimate_carries_the_grasp_with_the_object(lwa3_can: ou.Problem) -> None:
+    """Planning at the estimate moves the grasp pose rigidly with the object."""
+    from openup_ompl.perception.closed_loop import at_estimate
+
+    assert lwa3_can.object is not None
+    pose = lwa3_can.object.pose.copy()
+    pose[:2] += [0.01, -0.02]
+    moved = at_estimate(lwa3_can, pose)
+    assert np.allclose(moved.grasp_pose[:2] - lwa3_can.grasp_pose[:2], [0.01, -0.02])
+    assert np.allclose(moved.grasp_pose[2:], lwa3_can.grasp_pose[2:])
+
+
+def test_closed_loop_takes_the_judge_as_an_argument(lwa3_can: ou.Problem) -> None:
+    """Each policy of a trial is planned at the same estimate and judged against the
+    truth by the judge given; the summary has the contract's columns."""
+    from openup_ompl.perception.closed_loop import (
+        CSV_COLUMNS,
+        ClosedLoopOptions,
+        closed_loop,
+        summarize,
+    )
+
+    seen: list[tuple[float, np.ndarray]] = []
+
+    def judge(setup, plan, truth):  # type: ignore[no-untyped-def]
+        assert truth is lwa3_can
+        seen.append((setup.law.u, setup.problem.object.pose))
+        return {"success": setup.law.u > 0.5}
+
+    options = ClosedLoopOptions(
+        policies=("0", "1", "covariance"), noises=(1.0,), distances=(0.8,), trials=1
+    )
+    rows = summarize(closed_loop(lwa3_can, options, judge=judge))
+    assert len(seen) == 3 and all(np.allclose(pose, seen[0][1]) for _, pose in seen)
+    assert {row["policy"]: row["successes"] for row in rows} == {"0": 0, "1": 1, "covariance": 0}
+    assert set(CSV_COLUMNS[:6]) <= set(rows[0])
