@@ -251,6 +251,13 @@ def build_parser() -> argparse.ArgumentParser:
         default=["0", "0.3", "1", "covariance"],
         help="fixed u values and/or 'covariance' (default: 0 0.3 1 covariance)",
     )
+    loop.add_argument(
+        "--camera",
+        nargs="+",
+        default=None,
+        metavar="KEY=VALUE",
+        help="camera options over the scene's [camera] (distance is swept by --distance)",
+    )
     loop.add_argument("--noise", type=float, nargs="+", default=[1.0, 2.0, 4.0])
     loop.add_argument("--distance", type=float, nargs="+", default=[0.6, 1.0], help="[m]")
     loop.add_argument("--trials", type=int, default=10, help="views per noise and distance")

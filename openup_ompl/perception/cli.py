@@ -75,6 +75,7 @@ def perceive_command(args: argparse.Namespace) -> int:
 def closed_loop_command(args: argparse.Namespace) -> int:
     import json
 
+    from openup_ompl.perception.camera import CameraOptions
     from openup_ompl.perception.closed_loop import (
         ClosedLoopOptions,
         closed_loop,
@@ -84,7 +85,12 @@ def closed_loop_command(args: argparse.Namespace) -> int:
     from openup_ompl.robustness import check_scene, default_robustness_scene
 
     problem = check_scene(args.scene or default_robustness_scene())
+    assert problem.path is not None
+    table = _toml.read_toml(problem.path, "scene file").get("camera", {})
+    if not isinstance(table, dict):
+        raise ConfigError(f"{problem.path.name}: camera", table, "a [camera] table")
     options = ClosedLoopOptions(
+        camera=CameraOptions.from_table({**table, **camera_pairs(args.camera or [])}),
         policies=tuple(args.policies),
         noises=tuple(args.noise),
         distances=tuple(args.distance),
