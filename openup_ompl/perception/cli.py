@@ -116,4 +116,13 @@ def closed_loop_command(args: argparse.Namespace) -> int:
             f" {row['successes']}/{row['trials']} (mean u {row['mean_u']:.3f})"
         )
     print(f"table written to {csv_path}; every trial in {trials}")
+    from openup_ompl.figures import MissingExtra
+
+    try:
+        from openup_ompl.perception.figure import plot_closed_loop
+
+        title = f"closed loop, {problem.robot.name}: perceive, plan at the estimate, execute"
+        print(f"plot written to {plot_closed_loop(rows, args.out / 'closed_loop.png', title)}")
+    except MissingExtra as missing:
+        print(f"no plot: {missing}", file=sys.stderr)
     return 0

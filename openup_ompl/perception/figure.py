@@ -3,7 +3,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -12,7 +14,7 @@ from openup_ompl.perception.perceive import Perception
 from openup_ompl.perception.superquadric import Superquadric
 from openup_ompl.scene import Shape
 
-__all__ = ["ELLIPSE_CHI2", "plot_perception", "shape_superquadric"]
+__all__ = ["ELLIPSE_CHI2", "plot_closed_loop", "plot_perception", "shape_superquadric"]
 
 #: The "2-sigma" ellipse in a plane: Mahalanobis radius^2 of chi^2 with 2 dof at 95.45 %,
 #: the probability of +-2 sigma in one dimension (a 2D ellipse at radius 2 holds 86.5 %).
@@ -98,6 +100,39 @@ def plot_perception(perception: Perception, truth: Shape, out: Path, title: str 
     top.set_ylabel("y [m]")
     top.legend(fontsize=8)
     fig.suptitle(title or f"u = {perception.u:.3f}, {perception.fit.points} points")
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out
+
+
+def plot_closed_loop(rows: Sequence[dict[str, Any]], out: Path, title: str = "") -> Path:
+    """Success rate against the sensor noise scale, one line per policy, one panel per
+    camera distance (the rows of :func:`~openup_ompl.perception.closed_loop.summarize`)."""
+    from openup_ompl.figures import _pyplot
+
+    plt = _pyplot()
+    distances = sorted({row["distance"] for row in rows})
+    policies = list(dict.fromkeys(row["policy"] for row in rows))
+    fig, axes = plt.subplots(1, len(distances), figsize=(4.5 * len(distances), 3.8), sharey=True)
+    for ax, distance in zip(np.atleast_1d(axes), distances, strict=True):
+        for policy in policies:
+            cells = sorted(
+                (row["noise"], row["success_rate"], row["trials"])
+                for row in rows
+                if row["distance"] == distance and row["policy"] == policy
+            )
+            label = "u from covariance" if policy == "covariance" else f"u = {policy}"
+            ax.plot([c[0] for c in cells], [c[1] for c in cells], "o-", label=label)
+        ax.set_title(f"camera at {distance:g} m")
+        ax.set_xlabel("sensor noise scale (1: Kinect v1)")
+        ax.set_ylim(-0.05, 1.05)
+        ax.grid(alpha=0.3)
+    np.atleast_1d(axes)[0].set_ylabel("success rate")
+    np.atleast_1d(axes)[0].legend(fontsize=8)
+    if title:
+        fig.suptitle(title)
     fig.tight_layout()
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=110)
