@@ -224,7 +224,7 @@ def test_perceive_cli_bad_camera_key_exits_2(tmp_path: Path, capsys: pytest.Capt
 
 def test_at_estimate_carries_the_grasp_with_the_object(lwa3_can: ou.Problem) -> None:
     """Planning at the estimate moves the grasp pose rigidly with the object."""
-    from openup_ompl.perception.closed_loop import at_estimate
+    from openup_ompl.perception import at_estimate
 
     assert lwa3_can.object is not None
     pose = lwa3_can.object.pose.copy()

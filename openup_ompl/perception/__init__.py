@@ -7,6 +7,7 @@ from openup_ompl.perception.camera import CameraOptions, DepthCamera, DepthView
 from openup_ompl.perception.noise import NoiseOptions, PointCloud, kinect_sigmas, noisy_cloud
 from openup_ompl.perception.perceive import (
     Perception,
+    at_estimate,
     estimated_pose,
     perceive,
     perceived_toml,
@@ -38,6 +39,7 @@ __all__ = [
     "Silhouette",
     "Superquadric",
     "SuperquadricFit",
+    "at_estimate",
     "clearance_per_u",
     "estimated_pose",
     "fit_superquadric",

@@ -25,12 +25,11 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pinocchio as pin
 
 from openup_ompl.exceptions import ConfigError, InvalidProblem, PerceptionError, PlanningFailed
 from openup_ompl.perception.camera import CameraOptions, DepthCamera
 from openup_ompl.perception.noise import NoiseOptions
-from openup_ompl.perception.perceive import perceive
+from openup_ompl.perception.perceive import at_estimate, perceive
 from openup_ompl.scene import Problem
 
 if TYPE_CHECKING:
@@ -103,19 +102,6 @@ class ClosedLoopOptions:
             NoiseOptions(scale=noise)
         for distance in self.distances:
             dataclasses.replace(self.camera, distance=distance)
-
-
-def at_estimate(problem: Problem, pose: np.ndarray) -> Problem:
-    """The problem as perception reports it: the object at ``pose`` and the grasp pose
-    carried along (``T_grasp' = T_estimate T_nominal^-1 T_grasp``)."""
-    shape = problem.object
-    if shape is None:
-        raise InvalidProblem("the scene has no [object]")
-    moved = pin.XYZQUATToSE3(pose) * shape.placement.inverse()
-    grasp = np.asarray(pin.SE3ToXYZQUAT(moved * problem.grasp), dtype=float)
-    raw = {**shape.raw, "pose": [float(x) for x in pose]}
-    estimated = dataclasses.replace(shape, pose=np.asarray(pose, dtype=float), raw=raw)
-    return dataclasses.replace(problem, object=estimated, grasp_pose=grasp)
 
 
 def kinematic_judge(setup: GraspPlanningSetup, plan: Plan, truth: Problem) -> dict[str, Any]:

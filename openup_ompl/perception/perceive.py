@@ -7,6 +7,7 @@ and ``[hand] u`` from :func:`~openup_ompl.perception.uncertainty.u_from_covarian
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from dataclasses import dataclass
@@ -17,7 +18,7 @@ import numpy as np
 import pinocchio as pin
 
 from openup_ompl import _toml
-from openup_ompl.exceptions import ObjectNotVisible, TooFewPoints
+from openup_ompl.exceptions import InvalidProblem, ObjectNotVisible, TooFewPoints
 from openup_ompl.perception.camera import CameraOptions, DepthCamera, DepthView
 from openup_ompl.perception.noise import NoiseOptions, PointCloud, noisy_cloud, normal_sigma
 from openup_ompl.perception.superquadric import (
@@ -32,6 +33,7 @@ from openup_ompl.scene import Problem, Shape
 
 __all__ = [
     "Perception",
+    "at_estimate",
     "estimated_pose",
     "perceive",
     "perceived_toml",
@@ -198,10 +200,24 @@ def _rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.asarray(pin.exp3(axis / sine * math.atan2(sine, cosine)))
 
 
+def at_estimate(problem: Problem, pose: np.ndarray) -> Problem:
+    """The problem as perception reports it: the object at ``pose`` and the grasp pose
+    carried along (``T_grasp' = T_estimate T_nominal^-1 T_grasp``)."""
+    shape = problem.object
+    if shape is None:
+        raise InvalidProblem("the scene has no [object]")
+    moved = pin.XYZQUATToSE3(pose) * shape.placement.inverse()
+    grasp = np.asarray(pin.SE3ToXYZQUAT(moved * problem.grasp), dtype=float)
+    raw = {**shape.raw, "pose": [float(x) for x in pose]}
+    estimated = dataclasses.replace(shape, pose=np.asarray(pose, dtype=float), raw=raw)
+    return dataclasses.replace(problem, object=estimated, grasp_pose=grasp)
+
+
 def perceived_toml(problem: Problem, perception: Perception) -> str:
-    """The scene file with ``[object] pose`` at the estimate and ``[hand] u`` set; a robot
-    named by a relative path is written as an absolute one, so that the file plans from
-    any directory."""
+    """The scene file with ``[object] pose`` at the estimate, ``[grasp] pose`` carried
+    along with it (:func:`at_estimate`: the grasp is defined relative to the object) and
+    ``[hand] u`` set; a robot named by a relative path is written as an absolute one, so
+    that the file plans from any directory."""
     from openup_ompl.perception._toml_writer import dumps
     from openup_ompl.robot import available_robots
 
@@ -211,13 +227,16 @@ def perceived_toml(problem: Problem, perception: Perception) -> str:
         raw["robot"] = str(problem.robot.spec.path)
     raw["object"] = {**raw["object"], "pose": [round(float(x), 9) for x in perception.pose]}
     raw["hand"] = {**raw.get("hand", {}), "u": round(perception.u, 6)}
+    grasp = at_estimate(problem, perception.pose).grasp_pose
+    raw["grasp"] = {**raw["grasp"], "pose": [round(float(x), 9) for x in grasp]}
     fit = perception.fit
     header = (
         f"# Perceived by openup-ompl perceive from {problem.path.name}: {fit.points} points,"
         f" superquadric sizes {np.round(fit.superquadric.sizes, 4).tolist()} m,"
         f" exponents {np.round(fit.superquadric.exponents, 3).tolist()},\n"
         f"# mean residual {fit.mean_residual * 1e3:.2f} mm; u = {perception.u:.3f} from the"
-        " pose covariance (openup_ompl.perception.uncertainty).\n"
+        " pose covariance (openup_ompl.perception.uncertainty); the grasp pose moved with"
+        " the object's estimate.\n"
     )
     return header + dumps(raw)
 
