@@ -40,9 +40,9 @@ __all__ = [
     "CSV_COLUMNS",
     "ClosedLoopOptions",
     "Judge",
-    "at_estimate",
     "closed_loop",
     "kinematic_judge",
+    "read_csv",
     "summarize",
     "write_csv",
 ]
@@ -224,3 +224,18 @@ def write_csv(rows: Sequence[dict[str, Any]], path: Path) -> Path:
                 }
             )
     return path
+
+
+def read_csv(path: Path) -> list[dict[str, Any]]:
+    """Rows of a CSV written by :func:`write_csv`, numbers as numbers."""
+    with path.open(newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    kinds: dict[str, type] = {"trials": int, "successes": int, "planning_failures": int}
+    floats = ("noise", "distance", "success_rate", "mean_u", "mean_error_mm")
+    return [
+        {
+            key: kinds[key](value) if key in kinds else float(value) if key in floats else value
+            for key, value in row.items()
+        }
+        for row in rows
+    ]
