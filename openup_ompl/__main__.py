@@ -267,7 +267,73 @@ def build_parser() -> argparse.ArgumentParser:
     )
     robust.add_argument("--quiet", action="store_true", help="no progress on stderr")
     robust.set_defaults(handler=_robustness_command)
+
+    perceive = commands.add_parser(
+        "perceive",
+        help="simulated depth view of the scene's object, superquadric fit, covariance;"
+        " writes DIR/perceived.toml with the estimated pose and u",
+    )
+    perceive.add_argument("scene", type=Path, help="scene TOML (may hold a [camera] table)")
+    perceive.add_argument(
+        "--camera",
+        nargs="+",
+        default=None,
+        metavar="KEY=VALUE",
+        help="camera options over the scene's [camera] (e.g. distance=0.9 elevation=50"
+        " width=320 height=240 position=[1,0,0.8])",
+    )
+    perceive.add_argument(
+        "--noise", type=float, default=1.0, help="sensor noise scale (1: Kinect v1, 0: none)"
+    )
+    perceive.add_argument("--seed", type=_seed, default=1, help="seed of the sensor noise")
+    perceive.add_argument("--out", type=Path, required=True, help="output directory")
+    perceive.set_defaults(handler=_perceive_command)
+
+    loop = commands.add_parser(
+        "closed-loop",
+        help="perceive -> plan at the estimate with each policy's u -> execute against the"
+        " true pose (kinematic judge), over noise scales and camera distances",
+    )
+    loop.add_argument(
+        "--scene", type=Path, default=None, help="scene TOML (default: scenes/lwa3_sdh_can.toml)"
+    )
+    loop.add_argument(
+        "--policies",
+        nargs="+",
+        default=["0", "0.3", "1", "covariance"],
+        help="fixed u values and/or 'covariance' (default: 0 0.3 1 covariance)",
+    )
+    loop.add_argument(
+        "--camera",
+        nargs="+",
+        default=None,
+        metavar="KEY=VALUE",
+        help="camera options over the scene's [camera] (distance is swept by --distance)",
+    )
+    loop.add_argument("--noise", type=float, nargs="+", default=[1.0, 2.0, 4.0])
+    loop.add_argument("--distance", type=float, nargs="+", default=[0.6, 1.0], help="[m]")
+    loop.add_argument("--trials", type=int, default=10, help="views per noise and distance")
+    loop.add_argument("--seed", type=_seed, default=1, help="seed of trial 0")
+    loop.add_argument(
+        "--planner", default="ikbirrt", choices=PLANNERS, metavar="NAME", help="planner name"
+    )
+    loop.add_argument("--time", type=_positive_float, default=5.0, help="time limit per plan [s]")
+    loop.add_argument("--out", type=Path, default=Path("openup-closed-loop"))
+    loop.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    loop.set_defaults(handler=_closed_loop_command)
     return parser
+
+
+def _closed_loop_command(args: argparse.Namespace) -> int:
+    from openup_ompl.perception.cli import closed_loop_command
+
+    return closed_loop_command(args)
+
+
+def _perceive_command(args: argparse.Namespace) -> int:
+    from openup_ompl.perception.cli import perceive_command
+
+    return perceive_command(args)
 
 
 def _robustness_command(args: argparse.Namespace) -> int:

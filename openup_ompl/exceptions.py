@@ -178,3 +178,57 @@ class SweepFailed(OpenUpError):
         super().__init__(
             f"{len(self.failures)} task(s) failed on every attempt; first {first[0]!r}: {first[1]}"
         )
+
+
+class PerceptionError(OpenUpError):
+    """The simulated camera or the superquadric fit cannot give a pose estimate."""
+
+
+class ObjectNotVisible(PerceptionError):
+    """The camera's view holds no point of the object.
+
+    Attributes:
+        camera: The camera's position ``[x, y, z]`` [m] in the world frame.
+        target: The point [m] it looks at.
+        object_name: The scene object that was looked for.
+        hits: Rays that hit anything (obstacles included).
+        dropped: Object hits dropped at grazing incidence.
+    """
+
+    def __init__(
+        self,
+        camera: Sequence[float],
+        target: Sequence[float],
+        object_name: str,
+        hits: int,
+        dropped: int = 0,
+    ) -> None:
+        self.camera = [float(x) for x in camera]
+        self.target = [float(x) for x in target]
+        self.object_name = object_name
+        self.hits = hits
+        self.dropped = dropped
+        where = ", ".join(f"{x:.3g}" for x in self.camera)
+        at = ", ".join(f"{x:.3g}" for x in self.target)
+        super().__init__(
+            f"the camera at [{where}] looking at [{at}] sees no point of the object"
+            f" {object_name!r} ({hits} rays hit the scene, {dropped} object hits dropped at"
+            " grazing incidence): expected a camera that sees it"
+        )
+
+
+class TooFewPoints(PerceptionError):
+    """The object's point cloud has fewer points than the fit has parameters.
+
+    Attributes:
+        points: Points in the cloud.
+        needed: The least number accepted.
+    """
+
+    def __init__(self, points: int, needed: int) -> None:
+        self.points = points
+        self.needed = needed
+        super().__init__(
+            f"the object's point cloud has {points} points: expected at least {needed}"
+            " (more points than the superquadric's 11 parameters)"
+        )

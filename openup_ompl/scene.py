@@ -21,7 +21,9 @@ SHAPES = ("box", "cylinder", "sphere")
 #: The dimensions each shape takes [m].
 SHAPE_KEYS = {"box": ("size",), "cylinder": ("radius", "length"), "sphere": ("radius",)}
 #: The keys of a scene file's top level and of its ``[grasp]`` table.
-SCENE_KEYS = ("robot", "start", "grasp", "hand", "object", "obstacles")
+#: ``[camera]`` is the simulated depth camera's (:mod:`openup_ompl.perception`, which
+#: validates it when it looks).
+SCENE_KEYS = ("robot", "start", "grasp", "hand", "object", "obstacles", "camera")
 GRASP_KEYS = ("pose",)
 #: The hand-law fields a scene's ``[hand]`` may override (the fixed preshape is a planning
 #: option, not part of a scene).

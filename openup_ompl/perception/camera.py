@@ -1,0 +1,290 @@
+"""A simulated pinhole depth camera that ray-casts the scene with MuJoCo.
+
+The camera frame follows OpenCV: ``z`` forward along the optical axis, ``x`` right, ``y``
+down. One ray per pixel centre is cast with ``mujoco.mj_multiRay`` against the scene's
+MuJoCo model (:func:`~openup_ompl.physics.shapes.scene_spec`); each ray returns its hit
+distance, geom id and surface normal. The noise model is applied separately
+(:mod:`~openup_ompl.perception.noise`) so that one ray cast serves many noisy views.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, fields
+from typing import Any
+
+import numpy as np
+
+from openup_ompl import _toml
+from openup_ompl.exceptions import ConfigError, InvalidProblem
+from openup_ompl.scene import Problem
+
+__all__ = ["CameraOptions", "DepthCamera", "DepthView"]
+
+
+@dataclass(frozen=True)
+class CameraOptions:
+    """Pose, intrinsics and resolution of the depth camera.
+
+    The pose is either explicit (``position`` and ``target``) or, by default, set from the
+    object: the camera stands ``distance`` from the object's centre, on the side of the
+    robot's base (the world origin) or at ``azimuth``, raised by ``elevation``; it looks at
+    the object's centre. Without ``fx`` the focal length follows from ``fov``.
+
+    Attributes:
+        width: Image width [px].
+        height: Image height [px].
+        fov: Horizontal field of view [deg] (57: the Kinect v1's), used when ``fx`` is None.
+        fx: Focal length along x [px] (None: from ``fov``).
+        fy: Focal length along y [px] (None: ``fx``, square pixels).
+        cx: Principal point x [px] (None: the image centre).
+        cy: Principal point y [px] (None: the image centre).
+        distance: Camera to object centre [m] (default pose only).
+        elevation: Angle [deg] of the line of sight above the horizontal (default pose).
+        azimuth: Direction [deg] from the object to the camera about world z (None: towards
+            the robot's base at the world origin).
+        position: Explicit camera position ``[x, y, z]`` [m] in the world frame.
+        target: Explicit point [m] the optical axis passes through (None: object centre).
+        max_range: Rays longer than this [m] return nothing (the sensor's far limit).
+    """
+
+    width: int = 160  # [px]
+    height: int = 120  # [px]
+    fov: float = 57.0  # [deg]
+    fx: float | None = None  # [px]
+    fy: float | None = None  # [px]
+    cx: float | None = None  # [px]
+    cy: float | None = None  # [px]
+    distance: float = 0.8  # [m]
+    elevation: float = 40.0  # [deg]
+    azimuth: float | None = None  # [deg]
+    position: tuple[float, float, float] | None = None  # [m]
+    target: tuple[float, float, float] | None = None  # [m]
+    max_range: float = 4.0  # [m]
+
+    def __post_init__(self) -> None:
+        for name in ("width", "height"):
+            value = getattr(self, name)
+            if not (isinstance(value, int) and not isinstance(value, bool) and 1 <= value <= 4096):
+                raise ConfigError(
+                    f"camera.{name}", value, "an integer number of pixels in [1, 4096]"
+                )
+        positive = {"fov": self.fov, "distance": self.distance, "max_range": self.max_range}
+        for name in ("fx", "fy"):
+            if getattr(self, name) is not None:
+                positive[name] = getattr(self, name)
+        for name, value in positive.items():
+            if not (_is_number(value) and math.isfinite(value) and value > 0):
+                raise ConfigError(f"camera.{name}", value, "a positive finite number")
+        if not self.fov < 180:
+            raise ConfigError("camera.fov", self.fov, "a field of view in (0, 180) deg")
+        for name in ("cx", "cy", "azimuth"):
+            value = getattr(self, name)
+            if value is not None and not (_is_number(value) and math.isfinite(value)):
+                raise ConfigError(f"camera.{name}", value, "a finite number")
+        if not (_is_number(self.elevation) and -90 < self.elevation < 90):
+            raise ConfigError("camera.elevation", self.elevation, "an angle in (-90, 90) deg")
+        for name in ("position", "target"):
+            value = getattr(self, name)
+            if value is not None and not (
+                len(value) == 3 and all(_is_number(x) and math.isfinite(x) for x in value)
+            ):
+                raise ConfigError(f"camera.{name}", value, "[x, y, z], finite, in metres")
+
+    @classmethod
+    def from_table(cls, table: Mapping[str, Any], where: str = "camera") -> CameraOptions:
+        """Options from a scene's ``[camera]`` table or ``--camera KEY=VALUE`` pairs (the
+        keys are the attribute names)."""
+        _toml.check_keys(table, {f.name for f in fields(cls)}, where)
+        values: dict[str, Any] = {}
+        for key, value in table.items():
+            if key in ("position", "target"):
+                value = tuple(float(x) for x in _toml.vector(value, f"{where}.{key}", 3))
+            values[key] = value
+        return cls(**values)
+
+    def intrinsics(self) -> tuple[float, float, float, float]:
+        """``(fx, fy, cx, cy)`` [px]."""
+        fx = (
+            self.fx
+            if self.fx is not None
+            else self.width / 2 / math.tan(math.radians(self.fov) / 2)
+        )
+        fy = self.fy if self.fy is not None else fx
+        cx = self.cx if self.cx is not None else self.width / 2
+        cy = self.cy if self.cy is not None else self.height / 2
+        return float(fx), float(fy), float(cx), float(cy)
+
+    def look_at(self, problem: Problem) -> tuple[np.ndarray, np.ndarray]:
+        """The camera's position and target [m] in the world frame for ``problem``."""
+        if self.target is not None:
+            target = np.array(self.target, dtype=float)
+        elif problem.object is not None:
+            target = np.asarray(problem.object.pose[:3], dtype=float)
+        else:
+            raise InvalidProblem("the camera needs a target: the scene has no [object]")
+        if self.position is not None:
+            position = np.array(self.position, dtype=float)
+        else:
+            if self.azimuth is not None:
+                azimuth = math.radians(self.azimuth)
+            else:
+                azimuth = math.atan2(-target[1], -target[0])  # towards the robot's base
+            elevation = math.radians(self.elevation)
+            direction = np.array(
+                [
+                    math.cos(elevation) * math.cos(azimuth),
+                    math.cos(elevation) * math.sin(azimuth),
+                    math.sin(elevation),
+                ]
+            )
+            position = target + self.distance * direction
+        if np.linalg.norm(target - position) < 1e-6:
+            raise ConfigError("camera.position", position.tolist(), "a point away from the target")
+        return position, target
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def camera_rotation(position: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """World rotation of the camera frame (columns: x right, y down, z forward)."""
+    forward = (target - position) / np.linalg.norm(target - position)
+    up = np.array([0.0, 0.0, 1.0])
+    if abs(float(forward @ up)) > 0.999:  # looking straight up or down: image up is +x
+        up = np.array([1.0, 0.0, 0.0])
+    right = np.cross(forward, up)
+    right /= np.linalg.norm(right)
+    down = np.cross(forward, right)
+    return np.column_stack([right, down, forward])
+
+
+@dataclass(frozen=True)
+class DepthView:
+    """One noise-free ray cast: every pixel's hit, in the world and camera frames.
+
+    Attributes:
+        position: Camera position [m], world frame.
+        rotation: Camera frame in the world frame (columns x right, y down, z forward).
+        rays: Unit ray directions, camera frame, ``(H * W, 3)``, row-major pixels.
+        distance: Hit distance along each ray [m]; NaN where nothing was hit.
+        geom: Hit geom id (-1: none).
+        normal: Surface normal at the hit, world frame (zeros: none).
+        object_geoms: Geom ids of the object.
+        width: Image width [px].
+        height: Image height [px].
+        focal: ``fx`` [px] (the lateral noise's pixel scale).
+    """
+
+    position: np.ndarray
+    rotation: np.ndarray
+    rays: np.ndarray
+    distance: np.ndarray
+    geom: np.ndarray
+    normal: np.ndarray
+    object_geoms: np.ndarray
+    width: int
+    height: int
+    focal: float
+
+    @property
+    def hit(self) -> np.ndarray:
+        """Pixels whose ray hit the scene."""
+        return self.geom >= 0
+
+    @property
+    def on_object(self) -> np.ndarray:
+        """Pixels whose ray hit the object: the segmentation rule, an idealisation (a
+        perfect instance label from the renderer, as a trained segmenter approximates)."""
+        return np.isin(self.geom, self.object_geoms)
+
+    @property
+    def depth(self) -> np.ndarray:
+        """Depth ``z`` [m] along the optical axis (NaN: no hit)."""
+        return self.distance * self.rays[:, 2]
+
+    @property
+    def incidence(self) -> np.ndarray:
+        """Angle [rad] between each ray and the surface normal it hit (NaN: no hit)."""
+        world_rays = self.rays @ self.rotation.T
+        cosine = np.abs(np.einsum("ij,ij->i", world_rays, self.normal))
+        angle = np.arccos(np.clip(cosine, 0.0, 1.0))
+        return np.where(self.hit, angle, np.nan)
+
+    def camera_points(self) -> np.ndarray:
+        """Hit points in the camera frame [m] (NaN rows: no hit)."""
+        return self.rays * self.distance[:, None]
+
+
+class DepthCamera:
+    """Ray-casts one scene from one camera: the MuJoCo model is compiled once.
+
+    Args:
+        problem: The scene (its obstacles and object are cast; the robot is not).
+        options: Camera pose and intrinsics.
+    """
+
+    def __init__(self, problem: Problem, options: CameraOptions | None = None) -> None:
+        import mujoco
+
+        from openup_ompl.physics.shapes import scene_spec
+
+        if problem.object is None:
+            raise InvalidProblem("the scene has no [object] to look at")
+        self.problem = problem
+        self.options = options or CameraOptions()
+        self.position, self.target = self.options.look_at(problem)
+        self.rotation = camera_rotation(self.position, self.target)
+        self.model = scene_spec(problem).compile()
+        self.data = mujoco.MjData(self.model)
+        mujoco.mj_kinematics(self.model, self.data)
+        body = self.model.body("object").id
+        self.object_geoms = np.flatnonzero(self.model.geom_bodyid == body)
+        fx, fy, cx, cy = self.options.intrinsics()
+        width, height = self.options.width, self.options.height
+        u, v = np.meshgrid(np.arange(width) + 0.5, np.arange(height) + 0.5)
+        rays = np.column_stack([((u - cx) / fx).ravel(), ((v - cy) / fy).ravel(), np.ones(u.size)])
+        self.rays = rays / np.linalg.norm(rays, axis=1, keepdims=True)
+        self._world_rays = np.ascontiguousarray((self.rays @ self.rotation.T).ravel())
+        self._focal = fx
+        n = self.rays.shape[0]
+        self._geom = np.empty(n, dtype=np.int32)
+        self._dist = np.empty(n, dtype=float)
+        self._normal = np.empty(3 * n, dtype=float)
+
+    def render(self) -> DepthView:
+        """Cast every pixel's ray (MuJoCo ``mj_multiRay``, static geoms included)."""
+        import mujoco
+
+        n = self.rays.shape[0]
+        mujoco.mj_multiRay(
+            self.model,
+            self.data,
+            self.position,
+            self._world_rays,
+            None,
+            True,
+            -1,
+            self._geom,
+            self._dist,
+            self._normal,
+            n,
+            self.options.max_range,
+        )
+        geom = self._geom.copy()
+        distance = np.where(geom >= 0, self._dist, np.nan)
+        normal = self._normal.reshape(n, 3).copy()
+        return DepthView(
+            position=self.position.copy(),
+            rotation=self.rotation.copy(),
+            rays=self.rays,
+            distance=distance,
+            geom=geom,
+            normal=normal,
+            object_geoms=self.object_geoms,
+            width=self.options.width,
+            height=self.options.height,
+            focal=self._focal,
+        )

@@ -1,0 +1,128 @@
+"""``openup-ompl perceive``: one simulated view of a scene's object, fitted; writes the
+cloud, the figure, ``perception.json`` and ``perceived.toml`` (ready for ``plan``)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+
+from openup_ompl import _toml
+from openup_ompl.exceptions import ConfigError
+
+__all__ = ["camera_pairs", "perceive_command"]
+
+
+def camera_pairs(pairs: Sequence[str]) -> dict[str, Any]:
+    """``KEY=VALUE`` pairs (each VALUE a TOML value, e.g. ``distance=0.9``,
+    ``position=[1, 0, 0.8]``) as a ``[camera]`` table."""
+    from openup_ompl._toml import tomllib
+
+    table: dict[str, Any] = {}
+    for pair in pairs:
+        key, sep, value = pair.partition("=")
+        if not sep or not key.strip():
+            raise ConfigError("--camera", pair, "KEY=VALUE, e.g. distance=0.9")
+        try:
+            table[key.strip()] = tomllib.loads(f"v = {value}")["v"]
+        except tomllib.TOMLDecodeError:
+            raise ConfigError(f"--camera {key.strip()}", value, "a TOML value") from None
+    return table
+
+
+def perceive_command(args: argparse.Namespace) -> int:
+    from openup_ompl.exceptions import MissingExtra
+    from openup_ompl.perception.camera import CameraOptions
+    from openup_ompl.perception.noise import NoiseOptions
+    from openup_ompl.perception.perceive import perceive, write_perception
+    from openup_ompl.scene import load_scene
+
+    problem = load_scene(args.scene)
+    assert problem.path is not None
+    raw = _toml.read_toml(problem.path, "scene file")
+    table = raw.get("camera", {})
+    if not isinstance(table, dict):
+        raise ConfigError(f"{problem.path.name}: camera", table, "a [camera] table")
+    camera = CameraOptions.from_table({**table, **camera_pairs(args.camera or [])})
+    noise = replace(NoiseOptions(), scale=args.noise)
+    perception = perceive(problem, camera, noise, rng=np.random.default_rng(args.seed))
+    paths = write_perception(problem, perception, args.out)
+    assert problem.object is not None
+    error = (perception.fit.superquadric.position - problem.object.pose[:3]) * 1e3
+    sigma = np.sqrt(np.diag(perception.fit.position_covariance)) * 1e3
+    print(
+        f"{perception.fit.points} object points ({perception.cloud.dropped} dropped at grazing"
+        f" incidence); position error {np.round(error, 1).tolist()} mm, sigma"
+        f" {np.round(sigma, 1).tolist()} mm; mean residual"
+        f" {perception.fit.mean_residual * 1e3:.2f} mm; u = {perception.u:.3f}"
+    )
+    try:
+        from openup_ompl.perception.figure import plot_perception
+
+        figure = plot_perception(perception, problem.object, args.out / "perception.png")
+        print(f"figure written to {figure}")
+    except MissingExtra as missing:
+        print(f"no figure: {missing}", file=sys.stderr)
+    print(f"point cloud written to {paths['cloud']}")
+    print(f"scene with the estimate written to {paths['scene']}")
+    return 0
+
+
+def closed_loop_command(args: argparse.Namespace) -> int:
+    import json
+
+    from openup_ompl.perception.camera import CameraOptions
+    from openup_ompl.perception.closed_loop import (
+        ClosedLoopOptions,
+        closed_loop,
+        summarize,
+        write_csv,
+    )
+    from openup_ompl.robustness import check_scene, default_robustness_scene
+
+    problem = check_scene(args.scene or default_robustness_scene())
+    assert problem.path is not None
+    table = _toml.read_toml(problem.path, "scene file").get("camera", {})
+    if not isinstance(table, dict):
+        raise ConfigError(f"{problem.path.name}: camera", table, "a [camera] table")
+    options = ClosedLoopOptions(
+        camera=CameraOptions.from_table({**table, **camera_pairs(args.camera or [])}),
+        policies=tuple(args.policies),
+        noises=tuple(args.noise),
+        distances=tuple(args.distance),
+        trials=args.trials,
+        first_seed=args.seed,
+        planner=args.planner,
+        time_limit=args.time,
+    )
+
+    def progress(line: str) -> None:
+        if not args.quiet:
+            print(line, file=sys.stderr)
+
+    records = closed_loop(problem, options, progress=progress)
+    rows = summarize(records)
+    args.out.mkdir(parents=True, exist_ok=True)
+    csv_path = write_csv(rows, args.out / "closed_loop.csv")
+    trials = args.out / "closed_loop_trials.json"
+    trials.write_text(json.dumps(records, indent=1, default=str) + "\n")
+    for row in rows:
+        print(
+            f"{row['policy']:>10}  noise {row['noise']:<4g} distance {row['distance']:<4g}"
+            f" {row['successes']}/{row['trials']} (mean u {row['mean_u']:.3f})"
+        )
+    print(f"table written to {csv_path}; every trial in {trials}")
+    from openup_ompl.exceptions import MissingExtra
+
+    try:
+        from openup_ompl.perception.figure import plot_closed_loop
+
+        title = f"closed loop, {problem.robot.name}: perceive, plan at the estimate, execute"
+        print(f"plot written to {plot_closed_loop(rows, args.out / 'closed_loop.png', title)}")
+    except MissingExtra as missing:
+        print(f"no plot: {missing}", file=sys.stderr)
+    return 0

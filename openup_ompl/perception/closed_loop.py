@@ -1,0 +1,241 @@
+"""The closed loop: perceive, plan at the estimate with a policy's ``u``, judge against the
+true pose.
+
+Per trial (one seed): a fresh noisy view of the object where it truly is
+(:func:`~openup_ompl.perception.perceive.perceive`) gives the estimated pose and the
+covariance ``u``; for every policy (a fixed ``u``, or ``"covariance"``) the grasp is planned
+for the object at the estimate (the grasp pose moves with the estimate: it is defined
+relative to the object), and the plan is judged against the scene where the object truly
+is. All policies of a trial share its view, so that they are compared on the same errors.
+
+The judge is one argument, ``judge(setup, plan, truth) -> trial dict`` with at least
+``success`` (bool): :func:`kinematic_judge` (the default) re-checks the plan against the
+true scene and closes the hand there (:func:`openup_ompl.robustness.execute`); a physics
+judge can replace it without touching the loop.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from openup_ompl.exceptions import ConfigError, InvalidProblem, PerceptionError, PlanningFailed
+from openup_ompl.perception.camera import CameraOptions, DepthCamera
+from openup_ompl.perception.noise import NoiseOptions
+from openup_ompl.perception.perceive import at_estimate, perceive
+from openup_ompl.scene import Problem
+
+if TYPE_CHECKING:
+    from openup_ompl.plan import Plan
+    from openup_ompl.planning import GraspPlanningSetup
+
+__all__ = [
+    "CSV_COLUMNS",
+    "ClosedLoopOptions",
+    "Judge",
+    "closed_loop",
+    "kinematic_judge",
+    "read_csv",
+    "summarize",
+    "write_csv",
+]
+
+#: The columns of the experiment's CSV (CONTRACT §6), then diagnostics.
+CSV_COLUMNS = (
+    "policy",
+    "noise",
+    "distance",
+    "trials",
+    "successes",
+    "success_rate",
+    "mean_u",
+    "mean_error_mm",
+    "planning_failures",
+)
+
+Judge = Callable[["GraspPlanningSetup", "Plan", Problem], dict[str, Any]]
+
+
+@dataclass(frozen=True)
+class ClosedLoopOptions:
+    """The experiment's sweep.
+
+    Attributes:
+        policies: ``u`` values in [0, 1] (as text, e.g. ``"0.3"``) and/or ``"covariance"``.
+        noises: Sensor noise scales (:class:`NoiseOptions` ``scale``).
+        distances: Camera distances [m] to the object (the default camera pose otherwise).
+        trials: Views (seeds) per noise and distance.
+        first_seed: Seed of trial 0 (trial ``i``: ``first_seed + i``), for noise and plan.
+        planner: Planner name.
+        time_limit: Planning time limit [s].
+        camera: Other camera options (``distance`` is swept).
+    """
+
+    policies: tuple[str, ...] = ("0", "0.3", "1", "covariance")
+    noises: tuple[float, ...] = (0.5, 1.0, 2.0)
+    distances: tuple[float, ...] = (0.6, 1.0)  # [m]
+    trials: int = 10
+    first_seed: int = 1
+    planner: str = "ikbirrt"
+    time_limit: float = 5.0  # [s]
+    camera: CameraOptions = dataclasses.field(default_factory=CameraOptions)
+
+    def __post_init__(self) -> None:
+        for policy in self.policies:
+            if policy != "covariance":
+                try:
+                    value = float(policy)
+                except ValueError:
+                    value = math.nan
+                if not 0 <= value <= 1:
+                    raise ConfigError("policy", policy, "a u in [0, 1] or 'covariance'")
+        if not (isinstance(self.trials, int) and self.trials >= 1):
+            raise ConfigError("trials", self.trials, "an integer >= 1")
+        for noise in self.noises:
+            NoiseOptions(scale=noise)
+        for distance in self.distances:
+            dataclasses.replace(self.camera, distance=distance)
+
+
+def kinematic_judge(setup: GraspPlanningSetup, plan: Plan, truth: Problem) -> dict[str, Any]:
+    """:func:`openup_ompl.robustness.execute` against the true object: its planar offset
+    and yaw from the estimate (the estimate's height and tilt errors are kept: the judge
+    is planar, as the paper's experiment is)."""
+    from openup_ompl.robustness import execute
+
+    estimate, true = setup.problem.object, truth.object
+    assert estimate is not None and true is not None
+    dx, dy = (true.pose[:2] - estimate.pose[:2]).tolist()
+    relative = estimate.placement.rotation.T @ true.placement.rotation
+    yaw = float(math.atan2(relative[1, 0], relative[0, 0]))
+    torsion = setup.problem.robot.spec.torsion
+    return execute(setup, plan, dx, dy, yaw, torsion=torsion)[0]
+
+
+def closed_loop(
+    problem: Problem,
+    options: ClosedLoopOptions | None = None,
+    judge: Judge = kinematic_judge,
+    progress: Callable[[str], None] | None = None,
+) -> list[dict[str, Any]]:
+    """Run every trial; returns one record per (noise, distance, seed, policy)."""
+    from openup_ompl.planning import GraspPlanningSetup
+
+    options = options or ClosedLoopOptions()
+    assert problem.object is not None
+    records = []
+    for noise in options.noises:
+        for distance in options.distances:
+            camera = DepthCamera(problem, dataclasses.replace(options.camera, distance=distance))
+            for i in range(options.trials):
+                seed = options.first_seed + i
+                base = {"noise": noise, "distance": distance, "seed": seed}
+                try:
+                    seen = perceive(
+                        problem,
+                        noise=NoiseOptions(scale=noise),
+                        depth_camera=camera,
+                        rng=np.random.default_rng(seed),
+                    )
+                except PerceptionError as error:
+                    for policy in options.policies:
+                        records.append(
+                            {
+                                **base,
+                                "policy": policy,
+                                "success": False,
+                                "error": str(error),
+                                "u": math.nan,
+                                "error_mm": math.nan,
+                                "planned": False,
+                            }
+                        )
+                    continue
+                estimated = at_estimate(problem, seen.pose)
+                error_mm = float(np.linalg.norm(seen.pose[:2] - problem.object.pose[:2]) * 1e3)
+                for policy in options.policies:
+                    u = seen.u if policy == "covariance" else float(policy)
+                    record = {**base, "policy": policy, "u": u, "error_mm": error_mm}
+                    try:
+                        setup = GraspPlanningSetup(estimated, u=u)
+                        plan = setup.solve(
+                            time_limit=options.time_limit,
+                            planner=options.planner,
+                            seed=seed,
+                            simplify=True,
+                        )
+                    except (PlanningFailed, InvalidProblem) as error:
+                        records.append(
+                            {**record, "success": False, "planned": False, "error": str(error)}
+                        )
+                        continue
+                    trial = judge(setup, plan, problem)
+                    records.append({**record, **trial, "planned": True})
+                if progress is not None:
+                    progress(f"noise {noise:g}, distance {distance:g} m, seed {seed} done")
+    return records
+
+
+def summarize(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """One row per (policy, noise, distance) with the :data:`CSV_COLUMNS`."""
+    cells: dict[tuple[str, float, float], list[dict[str, Any]]] = {}
+    for record in records:
+        key = (record["policy"], record["noise"], record["distance"])
+        cells.setdefault(key, []).append(record)
+    rows = []
+    for (policy, noise, distance), group in cells.items():
+        successes = sum(bool(r["success"]) for r in group)
+        rows.append(
+            {
+                "policy": policy,
+                "noise": noise,
+                "distance": distance,
+                "trials": len(group),
+                "successes": successes,
+                "success_rate": successes / len(group),
+                "mean_u": float(np.nanmean([r["u"] for r in group])),
+                "mean_error_mm": float(np.nanmean([r["error_mm"] for r in group])),
+                "planning_failures": sum(not r["planned"] for r in group),
+            }
+        )
+    return rows
+
+
+def write_csv(rows: Sequence[dict[str, Any]], path: Path) -> Path:
+    """The experiment's CSV: :data:`CSV_COLUMNS`, one row per cell."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(CSV_COLUMNS))
+        writer.writeheader()
+        for row in rows:
+            writer.writerow(
+                {
+                    **row,
+                    "success_rate": f"{row['success_rate']:.4f}",
+                    "mean_u": f"{row['mean_u']:.4f}",
+                    "mean_error_mm": f"{row['mean_error_mm']:.3f}",
+                }
+            )
+    return path
+
+
+def read_csv(path: Path) -> list[dict[str, Any]]:
+    """Rows of a CSV written by :func:`write_csv`, numbers as numbers."""
+    with path.open(newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    kinds: dict[str, type] = {"trials": int, "successes": int, "planning_failures": int}
+    floats = ("noise", "distance", "success_rate", "mean_u", "mean_error_mm")
+    return [
+        {
+            key: kinds[key](value) if key in kinds else float(value) if key in floats else value
+            for key, value in row.items()
+        }
+        for row in rows
+    ]

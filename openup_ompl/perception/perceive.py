@@ -1,0 +1,264 @@
+"""One perception step: view -> noisy cloud -> superquadric fit -> object pose and ``u``.
+
+The outputs of ``openup-ompl perceive`` are written here too: the cloud (NPZ), a summary
+(``perception.json``) and ``perceived.toml``, the scene with the object at the estimate
+and ``[hand] u`` from :func:`~openup_ompl.perception.uncertainty.u_from_covariance`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from openup_ompl import _toml
+from openup_ompl.exceptions import InvalidProblem, ObjectNotVisible, TooFewPoints
+from openup_ompl.perception.camera import CameraOptions, DepthCamera, DepthView
+from openup_ompl.perception.noise import NoiseOptions, PointCloud, noisy_cloud, normal_sigma
+from openup_ompl.perception.superquadric import (
+    N_PARAMETERS,
+    FitOptions,
+    Silhouette,
+    SuperquadricFit,
+    fit_superquadric,
+)
+from openup_ompl.perception.uncertainty import u_from_covariance
+from openup_ompl.scene import Problem, Shape
+
+__all__ = [
+    "Perception",
+    "at_estimate",
+    "estimated_pose",
+    "perceive",
+    "perceived_toml",
+    "silhouette_of",
+    "write_perception",
+]
+
+
+@dataclass(frozen=True)
+class Perception:
+    """What one view tells about the object.
+
+    Attributes:
+        cloud: The object's measured points.
+        fit: The superquadric fit and its covariance.
+        pose: The object's estimated pose ``[x, y, z, qx, qy, qz, qw]`` (world frame), in
+            the scene shape's own frame (:func:`estimated_pose`).
+        u: The hand law's ``u`` from the covariance.
+        camera: Camera position [m].
+        target: The point [m] it looked at.
+    """
+
+    cloud: PointCloud
+    fit: SuperquadricFit
+    pose: np.ndarray
+    u: float
+    camera: np.ndarray
+    target: np.ndarray
+
+    def summary(self) -> dict[str, Any]:
+        """The estimate as plain JSON-ready values."""
+        sq = self.fit.superquadric
+        return {
+            "pose": [float(x) for x in self.pose],
+            "u": self.u,
+            "points": self.fit.points,
+            "dropped": self.cloud.dropped,
+            "sizes": sq.sizes.tolist(),
+            "exponents": sq.exponents.tolist(),
+            "diameter": self.fit.diameter,
+            "mean_residual": self.fit.mean_residual,
+            "residual_rms": self.fit.residual_rms,
+            "position_covariance": self.fit.position_covariance.tolist(),
+            "rotation_covariance": self.fit.rotation_covariance.tolist(),
+            "camera": self.camera.tolist(),
+            "target": self.target.tolist(),
+        }
+
+
+def silhouette_of(view: DepthView, noise: NoiseOptions, camera: CameraOptions) -> Silhouette:
+    """The view's free space: the object's pixels, pixels without a measurement (dropped
+    or no hit: unknown) and pixels whose hit lies in front of the object are allowed."""
+    valid = view.hit & (view.incidence <= math.radians(noise.max_incidence))
+    on_object = view.on_object & valid
+    shape = (view.height, view.width)
+    front = np.nanmin(view.depth[on_object]) if on_object.any() else np.inf
+    occluder = valid & ~view.on_object & (view.depth < front)
+    return Silhouette.from_view(
+        on_object.reshape(shape),
+        (occluder | ~valid).reshape(shape),
+        view.position,
+        view.rotation,
+        camera.intrinsics(),
+    )
+
+
+def perceive(
+    problem: Problem,
+    camera: CameraOptions | None = None,
+    noise: NoiseOptions | None = None,
+    fit: FitOptions | None = None,
+    *,
+    rng: np.random.Generator | None = None,
+    depth_camera: DepthCamera | None = None,
+    silhouette: bool = True,
+    weighted: bool = True,
+) -> Perception:
+    """Look at the scene's object once, fit it, and choose ``u``.
+
+    Args:
+        problem: The scene; its object is where it truly is.
+        camera: Camera options (ignored if ``depth_camera`` is given).
+        noise: Sensor noise model.
+        fit: Superquadric fit options.
+        rng: The noise's random generator (default: seed 0).
+        depth_camera: An already built camera (many views of one scene).
+        silhouette: Use the view's free space in the fit (:class:`Silhouette`).
+        weighted: Weight the fit by the sensor's noise model (:func:`normal_sigma`).
+
+    Raises:
+        ObjectNotVisible: No point of the object is measured.
+        TooFewPoints: Too few for the fit.
+    """
+    noise = noise or NoiseOptions()
+    rng = rng if rng is not None else np.random.default_rng(0)
+    cam = depth_camera or DepthCamera(problem, camera)
+    view = cam.render()
+    cloud = noisy_cloud(view, noise, rng)
+    assert problem.object is not None
+    if cloud.points.shape[0] == 0:
+        raise ObjectNotVisible(
+            cam.position.tolist(),
+            cam.target.tolist(),
+            problem.object.name,
+            int(view.hit.sum()),
+            cloud.dropped,
+        )
+    if cloud.points.shape[0] < 2 * N_PARAMETERS:
+        raise TooFewPoints(cloud.points.shape[0], 2 * N_PARAMETERS)
+    shape = silhouette_of(view, noise, cam.options) if silhouette else None
+    weights = normal_sigma(cam.position, cam.rotation, noise) if weighted else None
+    result = fit_superquadric(cloud.points, fit, shape, weights)
+    pose = estimated_pose(result, problem.object)
+    u = u_from_covariance(
+        result.position_covariance,
+        result.rotation_covariance,
+        problem,
+        sizes=result.superquadric.sizes,
+    )
+    return Perception(cloud, result, pose, u, cam.position.copy(), cam.target.copy())
+
+
+def estimated_pose(fit: SuperquadricFit, nominal: Shape) -> np.ndarray:
+    """The fitted pose in the frame of the scene's shape.
+
+    The superquadric's frame is one of several equivalent ones: a box's axes may be
+    permuted and flipped, a cylinder's axis flipped and its yaw about the axis is
+    unobservable, a sphere's orientation is. Among the equivalent orientations the one
+    closest to the scene's nominal orientation is returned (harmless: they describe the
+    same solid). A box's axes are matched to the scene's sizes by the fitted half-sizes'
+    order.
+    """
+    sq = fit.superquadric
+    rotation = sq.rotation
+    reference = pin.XYZQUATToSE3(nominal.pose).rotation
+    if nominal.shape == "sphere":
+        rotation = reference
+    elif nominal.shape == "cylinder":
+        axis = rotation[:, 2] * np.sign(rotation[:, 2] @ reference[:, 2] or 1.0)
+        turn = _rotation_between(reference[:, 2], axis)
+        rotation = turn @ reference
+    else:
+        assert nominal.size is not None
+        order = np.argsort(sq.sizes)[np.argsort(np.argsort(np.asarray(nominal.size)))]
+        permuted = rotation[:, order]
+        best, best_angle = permuted, np.inf
+        for signs in ((1, 1, 1), (1, -1, -1), (-1, 1, -1), (-1, -1, 1)):
+            candidate = permuted * np.array(signs, dtype=float)
+            if np.linalg.det(candidate) < 0:
+                candidate = candidate * np.array([1.0, 1.0, -1.0])
+            angle = float(np.linalg.norm(pin.log3(reference.T @ candidate)))
+            if angle < best_angle:
+                best, best_angle = candidate, angle
+        rotation = best
+    return np.asarray(pin.SE3ToXYZQUAT(pin.SE3(rotation, sq.position)), dtype=float)
+
+
+def _rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The smallest rotation taking unit vector ``a`` onto unit vector ``b``."""
+    axis = np.cross(a, b)
+    sine, cosine = float(np.linalg.norm(axis)), float(a @ b)
+    if sine < 1e-12:
+        return np.eye(3)  # parallel (antiparallel is excluded by the sign choice)
+    return np.asarray(pin.exp3(axis / sine * math.atan2(sine, cosine)))
+
+
+def at_estimate(problem: Problem, pose: np.ndarray) -> Problem:
+    """The problem as perception reports it: the object at ``pose`` and the grasp pose
+    carried along (``T_grasp' = T_estimate T_nominal^-1 T_grasp``)."""
+    shape = problem.object
+    if shape is None:
+        raise InvalidProblem("the scene has no [object]")
+    moved = pin.XYZQUATToSE3(pose) * shape.placement.inverse()
+    grasp = np.asarray(pin.SE3ToXYZQUAT(moved * problem.grasp), dtype=float)
+    raw = {**shape.raw, "pose": [float(x) for x in pose]}
+    estimated = dataclasses.replace(shape, pose=np.asarray(pose, dtype=float), raw=raw)
+    return dataclasses.replace(problem, object=estimated, grasp_pose=grasp)
+
+
+def perceived_toml(problem: Problem, perception: Perception) -> str:
+    """The scene file with ``[object] pose`` at the estimate, ``[grasp] pose`` carried
+    along with it (:func:`at_estimate`: the grasp is defined relative to the object) and
+    ``[hand] u`` set; a robot named by a relative path is written as an absolute one, so
+    that the file plans from any directory."""
+    from openup_ompl.perception._toml_writer import dumps
+    from openup_ompl.robot import available_robots
+
+    assert problem.path is not None
+    raw = _toml.read_toml(problem.path, "scene file")
+    if raw["robot"] not in available_robots():
+        raw["robot"] = str(problem.robot.spec.path)
+    raw["object"] = {**raw["object"], "pose": [round(float(x), 9) for x in perception.pose]}
+    raw["hand"] = {**raw.get("hand", {}), "u": round(perception.u, 6)}
+    grasp = at_estimate(problem, perception.pose).grasp_pose
+    raw["grasp"] = {**raw["grasp"], "pose": [round(float(x), 9) for x in grasp]}
+    fit = perception.fit
+    header = (
+        f"# Perceived by openup-ompl perceive from {problem.path.name}: {fit.points} points,"
+        f" superquadric sizes {np.round(fit.superquadric.sizes, 4).tolist()} m,"
+        f" exponents {np.round(fit.superquadric.exponents, 3).tolist()},\n"
+        f"# mean residual {fit.mean_residual * 1e3:.2f} mm; u = {perception.u:.3f} from the"
+        " pose covariance (openup_ompl.perception.uncertainty); the grasp pose moved with"
+        " the object's estimate.\n"
+    )
+    return header + dumps(raw)
+
+
+def write_perception(problem: Problem, perception: Perception, out: Path) -> dict[str, Path]:
+    """Write ``cloud.npz``, ``perception.json`` and ``perceived.toml`` into ``out``."""
+    out.mkdir(parents=True, exist_ok=True)
+    paths = {
+        "cloud": out / "cloud.npz",
+        "summary": out / "perception.json",
+        "scene": out / "perceived.toml",
+    }
+    np.savez(
+        paths["cloud"],
+        points=perception.cloud.points,
+        pixels=perception.cloud.pixels,
+        sigma_axial=perception.cloud.sigma_axial,
+        sigma_lateral=perception.cloud.sigma_lateral,
+        scene_points=perception.cloud.scene_points,
+    )
+    assert problem.object is not None
+    summary = {**perception.summary(), "true_pose": [float(x) for x in problem.object.pose]}
+    paths["summary"].write_text(json.dumps(summary, indent=2) + "\n")
+    paths["scene"].write_text(perceived_toml(problem, perception))
+    return paths
