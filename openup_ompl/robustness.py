@@ -50,7 +50,9 @@ if TYPE_CHECKING:
 
 __all__ = [
     "CSV_COLUMNS",
+    "EXECUTIONS",
     "MAX_DELTA",
+    "PHYSICS_COLUMNS",
     "RobustnessOptions",
     "RobustnessResult",
     "check_scene",
@@ -78,6 +80,11 @@ CSV_COLUMNS = (
     "collisions",
     "force_closure",
 )
+#: The columns a physics sweep adds (``--execute physics``): trials where the hand touched
+#: the object before closing, and the median object displacement before closing [mm].
+PHYSICS_COLUMNS = ("touched", "moved_mm")
+#: How trials are executed: ``kinematic`` (the default) or ``physics`` (MuJoCo).
+EXECUTIONS = ("kinematic", "physics")
 #: Largest pose error [m] accepted: beyond it the "error" is a different scene.
 MAX_DELTA = 0.25
 
@@ -105,6 +112,8 @@ class RobustnessOptions:
             extension, :func:`~openup_ompl.hand_law.open_hand`) instead of Algorithm 3.
         torsion: Soft-finger torsional friction [m] of the grasp test; ``None``: the
             robot file's ``[hand].torsion`` (0, point contacts, if it has none).
+        execute: ``"kinematic"`` (welded object, force closure) or ``"physics"`` (each
+            trial a MuJoCo rollout, :mod:`openup_ompl.physics.sweep`).
     """
 
     us: tuple[float, ...] = (0.0, 0.1, 0.3, 0.5, 1.0)
@@ -117,6 +126,7 @@ class RobustnessOptions:
     friction: float = 0.5
     open_arrival: bool = False
     torsion: float | None = None
+    execute: str = "kinematic"
 
     def __post_init__(self) -> None:
         from openup_ompl.planning import PLANNERS
@@ -160,6 +170,8 @@ class RobustnessOptions:
             raise ConfigError("time", self.time_limit, "a positive number of seconds")
         if not (math.isfinite(self.friction) and self.friction >= 0):
             raise ConfigError("friction", self.friction, "a coefficient >= 0")
+        if self.execute not in EXECUTIONS:
+            raise ConfigError("execute", self.execute, f"one of {list(EXECUTIONS)}")
         if self.torsion is not None:
             from openup_ompl.grasp import check_torsion
 
@@ -234,6 +246,10 @@ def make_tasks(scene: str | Path, options: RobustnessOptions) -> list[Task]:
         "open_arrival": bool(options.open_arrival),
         "torsion": options.torsion,
     }
+    function = "openup_ompl.robustness:robustness_run"
+    if options.execute == "physics":
+        shared["execute"] = "physics"
+        function = "openup_ompl.physics.sweep:physics_run"
     digest = hashlib.sha1(json.dumps(shared, sort_keys=True).encode()).hexdigest()[:10]
     tasks = []
     for u in options.us:
@@ -242,7 +258,7 @@ def make_tasks(scene: str | Path, options: RobustnessOptions) -> list[Task]:
             tasks.append(
                 Task(
                     key=f"u{u:g}-seed{seed}-{digest}",
-                    function="openup_ompl.robustness:robustness_run",
+                    function=function,
                     kwargs={**shared, "u": float(u)},
                     seed=seed,
                 )
@@ -366,11 +382,22 @@ def summarize(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
             row["trials"] += 1
             row["successes"] += int(trial["success"])
             row["collisions"] += int(trial["collision"])
-            row["force_closure"] += int(trial["force_closure"])
+            row["force_closure"] += int(bool(trial.get("force_closure")))
+            if "touched" in trial:
+                row.setdefault("touched", 0)
+                row["touched"] += int(trial["touched"])
+                moved = trial.get("moved_before_closing")
+                row.setdefault("moved", []).extend([moved["mm"]] if moved else [])
     rows = []
     for row in cells.values():
         row["success_rate"] = row["successes"] / row["trials"]
-        rows.append({column: row[column] for column in CSV_COLUMNS})
+        columns = {column: row[column] for column in CSV_COLUMNS}
+        if "touched" in row:
+            # Physics: no force-closure test; the median of the planned trials' moves.
+            columns["force_closure"] = ""
+            moved = row["moved"]
+            columns |= {"touched": row["touched"], "moved_mm": np.median(moved) if moved else ""}
+        rows.append(columns)
     return rows
 
 
@@ -430,12 +457,18 @@ def markdown_tables(rows: Sequence[dict[str, Any]]) -> str:
 
 
 def write_csv(rows: Sequence[dict[str, Any]], path: Path) -> Path:
-    """``robustness.csv``: the :data:`CSV_COLUMNS`, one row per cell."""
+    """``robustness.csv``: the :data:`CSV_COLUMNS` (and :data:`PHYSICS_COLUMNS` for a
+    physics sweep), one row per cell."""
+    physics = bool(rows) and "touched" in rows[0]
     with path.open("w", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=list(CSV_COLUMNS))
+        writer = csv.DictWriter(
+            handle, fieldnames=[*CSV_COLUMNS, *(PHYSICS_COLUMNS if physics else ())]
+        )
         writer.writeheader()
         for row in rows:
-            writer.writerow({**row, "success_rate": f"{row['success_rate']:.4f}"})
+            moved = row.get("moved_mm")
+            extra = {"moved_mm": f"{moved:.2f}"} if isinstance(moved, float) else {}
+            writer.writerow({**row, "success_rate": f"{row['success_rate']:.4f}", **extra})
     return path
 
 
@@ -544,6 +577,11 @@ def run_robustness(
         f"{problem.robot.name}, {scene.name}, {law}: {options.seeds} plans per u "
         f"({options.planner}, {options.time_limit:g} s), friction {options.friction:g}{contacts}"
     )
+    if options.execute == "physics":
+        title = (
+            f"{problem.robot.name}, {scene.name}, {law}: {options.seeds} plans per u "
+            f"({options.planner}, {options.time_limit:g} s), executed in physics (MuJoCo)"
+        )
     markdown.write_text(
         f"# Robustness to object pose errors\n\n{title}\n\n" + markdown_tables(rows)
     )
@@ -555,7 +593,11 @@ def run_robustness(
     except MissingExtra as error:
         print(f"no plot: {error}", file=sys.stderr)
         plot = None
-    grasps = None if plot is None else _grasp_figure(problem, options, torsion, out / "grasps.png")
+    grasps = (
+        None
+        if plot is None or options.execute == "physics"
+        else _grasp_figure(problem, options, torsion, out / "grasps.png")
+    )
     return RobustnessResult(csv_path, markdown, plot, trials, rows, records, grasps)
 
 
