@@ -228,8 +228,10 @@ def build_world(data: dict[str, Any], options: PhysicsOptions | None = None) -> 
         scene_object = _with(scene_object, mass=options.object_mass)
     if options.object_friction is not None:
         scene_object = _with(scene_object, friction=options.object_friction)
-    # condim 4: the object resists spinning about a contact normal (a pinched can).
-    add_scene(spec, obstacles, scene_object, free_object=True, condim=4)
+    # condim 4: the object resists spinning about a contact normal (a pinched can);
+    # priority 1: its friction is the coefficient of every contact it makes (MuJoCo would
+    # otherwise take the larger of the two geoms', 1.0 for the robot's and the table's).
+    add_scene(spec, obstacles, scene_object, free_object=True, condim=4, priority=1)
     for geom in spec.geoms:
         if geom.parent.name in ("world", "object"):
             geom.contype, geom.conaffinity = 1, 1
