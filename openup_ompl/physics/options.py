@@ -39,7 +39,8 @@ class PhysicsOptions:
         squeeze_force: Force limit of a prismatic hand joint [N] (per finger).
         speed: Fraction of the URDF velocity limits the reach moves at (the slowest
             joint of each segment sets its duration).
-        ramp: Duration [s] of the speed ramp at both ends of the reach.
+        acceleration: Joint acceleration limit [rad/s^2 or m/s^2] of the reach's timing
+            (along the path and where it turns).
         velocity_limit: Velocity limit [rad/s or m/s] of joints whose URDF gives none.
         close_speed: Speed [rad/s] at which the targets of revolute hand joints move
             towards the closed configuration (times the robot's ``closing_speed``).
@@ -47,7 +48,8 @@ class PhysicsOptions:
         close_settle: Time [s] the hand keeps squeezing after every target has reached
             the closed configuration, before the lift.
         lift_height: Straight-up palm motion of the lift [m] (world z).
-        lift_speed: Palm speed of the lift [m/s].
+        lift_speed: Mean palm speed of the lift [m/s] (a smoothstep in time: 1.5 times
+            that at its middle).
         hold: Time [s] the object is held at the top before the verdict.
         settle: Time [s] the object rests on the scene before the reach starts.
         success_distance: Largest drift [m] of the object in the palm frame between the
@@ -79,7 +81,7 @@ class PhysicsOptions:
     squeeze_torque: float = 1.0  # [N m]
     squeeze_force: float = 20.0  # [N]
     speed: float = 0.5  # [fraction of the URDF velocity limits]
-    ramp: float = 0.3  # [s]
+    acceleration: float = 2.0  # [rad/s^2] or [m/s^2]
     velocity_limit: float = 1.0  # [rad/s] or [m/s]
     close_speed: float = 1.0  # [rad/s]
     finger_close_speed: float = 0.05  # [m/s]
@@ -108,7 +110,6 @@ class PhysicsOptions:
                 "object_jitter",
                 "arm_armature",
                 "hand_armature",
-                "ramp",
                 "hand_kv",
                 "finger_kv",
                 "arm_kv",

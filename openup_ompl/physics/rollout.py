@@ -175,7 +175,7 @@ class Rollout:
         self.world = build_world(data, self.options)
         self.path = np.asarray(data["path"], dtype=float)
         self.timed = time_path(
-            self.path, self.world.velocity_limit, self.options.speed, self.options.ramp
+            self.path, self.world.velocity_limit, self.options.speed, self.options.acceleration
         )
         self.closed, self.closing_speed, self.closed_source = closed_targets(data, self.world)
         self.lift = lift_rows(self.world, self.path[-1], self.options.lift_height)
@@ -334,20 +334,19 @@ class Rollout:
         lift_rows_ = self.lift.copy()
         lift_rows_[:, hand] = ctrl[hand]
         lift_time = options.lift_height / options.lift_speed
-        lift_timed = time_path(
-            lift_rows_[:, arm],
-            np.full(arm.size, 1.0),
-            1.0,
-            0.0,
-        )
-        scale = lift_timed.duration / lift_time if lift_time > 0 else 1.0
-        lift_steps = math.ceil(lift_time / dt)
+        lift_steps = max(1, math.ceil(lift_time / dt))
         lift_lead = lead[arm]
+        last = len(lift_rows_) - 1
 
         def lift_at(k: int) -> np.ndarray:
+            """Arm target at lift step ``k``: the IK rows (equal palm rises) at a
+            smoothstep in time, starting and stopping at rest."""
             s = min(1.0, k / lift_steps)
-            smooth = s * s * (3 - 2 * s)  # smoothstep: starts and stops at rest
-            return lift_timed.at(smooth * lift_time * scale)
+            x = s * s * (3 - 2 * s) * last
+            i = min(int(x), max(last - 1, 0))
+            a = min(1.0, x - i)
+            j = min(i + 1, last)
+            return lift_rows_[i, arm] + a * (lift_rows_[j, arm] - lift_rows_[i, arm])
 
         for k in range(lift_steps):
             target, following = lift_at(k + 1), lift_at(k + 2)
