@@ -98,9 +98,13 @@ def build_parser() -> argparse.ArgumentParser:
     demo.set_defaults(handler=_demo_command)
 
     show = commands.add_parser(
-        "show", help="write a plan's pictures: HTML animation, storyboard, hand law figure"
+        "show",
+        help="write a plan's pictures: HTML animation, storyboard, hand law figure (or an"
+        " execution's: the rollout animated, a reach / close / lift storyboard)",
     )
-    show.add_argument("plan", type=Path, help="plan JSON (CONTRACT section 4)")
+    show.add_argument(
+        "plan", type=Path, help="plan JSON (CONTRACT section 4), or an execution.json"
+    )
     show.add_argument(
         "--out", type=Path, default=None, help="output directory (default: the plan's)"
     )
@@ -355,6 +359,15 @@ def _print_shown(plan: Path, out: Path | None) -> None:
 
 
 def _show_command(args: argparse.Namespace) -> int:
+    from openup_ompl.physics.record import is_execution
+
+    if is_execution(args.plan):
+        from openup_ompl.viz.rollout import show_execution
+
+        shown = show_execution(args.plan, args.out)
+        print(f"rollout animation written to {shown.html} (open it in a browser)")
+        print(f"rollout storyboard written to {shown.storyboard}")
+        return 0
     _print_shown(args.plan, args.out)
     return 0
 

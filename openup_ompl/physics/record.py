@@ -14,7 +14,13 @@ from typing import Any
 
 from openup_ompl.exceptions import ConfigError
 
-__all__ = ["EXECUTION_FORMAT", "ExecutionRecord", "read_execution", "write_execution"]
+__all__ = [
+    "EXECUTION_FORMAT",
+    "ExecutionRecord",
+    "is_execution",
+    "read_execution",
+    "write_execution",
+]
 
 EXECUTION_FORMAT = "openup-execution/1"
 
@@ -53,6 +59,8 @@ class ExecutionRecord:
         frames: Sampled rollout for the viewer: ``{"period_s", "joint_names", "q",
             "object", "phase"}`` (``object``: ``[x, y, z, qx, qy, qz, qw]`` rows), or
             ``None`` when not kept (sweeps).
+        source: The executed plan file's contents, kept with the frames so that the file
+            replays alone (``openup-ompl show``); ``None`` without frames.
     """
 
     success: bool
@@ -73,12 +81,14 @@ class ExecutionRecord:
     options: dict[str, Any]
     steps: int
     frames: dict[str, Any] | None = field(default=None, repr=False)
+    source: dict[str, Any] | None = field(default=None, repr=False)
 
     def to_dict(self, frames: bool = True) -> dict[str, Any]:
         """The file's contents (``frames=False``: without the rollout frames)."""
         data = {"format": EXECUTION_FORMAT, **asdict(self)}
         if not frames:
             data.pop("frames")
+            data.pop("source")
         return _rounded(data)
 
 
@@ -100,6 +110,17 @@ def write_execution(record: ExecutionRecord, out_dir: str | Path) -> Path:
     path = out / "execution.json"
     path.write_text(json.dumps(record.to_dict(), indent=1, allow_nan=False) + "\n")
     return path
+
+
+def is_execution(path: str | Path) -> bool:
+    """Whether ``path`` is a JSON file of the execution format (a cheap look, for the
+    command line to pick its reader)."""
+    try:
+        with Path(path).open() as handle:
+            head = handle.read(4096)
+    except OSError:
+        return False
+    return f'"format": "{EXECUTION_FORMAT}"' in head
 
 
 def read_execution(path: str | Path) -> dict[str, Any]:

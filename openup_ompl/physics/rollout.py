@@ -23,6 +23,7 @@ at the end of closing.
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 from collections.abc import Sequence
 from pathlib import Path
@@ -144,6 +145,16 @@ def _displaced_pose(pose: np.ndarray, dx: float, dy: float, yaw: float) -> np.nd
     quat = np.zeros(4)
     mujoco.mju_mulQuat(quat, mujoco_quat(pose), turn)
     return np.concatenate([np.asarray(pose[:3], dtype=float) + [dx, dy, 0.0], quat])
+
+
+def _plain(data: dict[str, Any]) -> dict[str, Any]:
+    """``data`` with NumPy values as plain JSON types (a plan's ``to_dict`` may hold them)."""
+
+    def convert(value: Any) -> Any:
+        return value.tolist() if hasattr(value, "tolist") else str(value)
+
+    result: dict[str, Any] = json.loads(json.dumps(data, default=convert))
+    return result
 
 
 def _pose_change(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
@@ -447,6 +458,7 @@ class Rollout:
             }
             if frames
             else None,
+            source=_plain(self.data) if frames else None,
         )
 
 
