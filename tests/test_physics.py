@@ -238,3 +238,33 @@ def test_accelerations_solve_the_dynamics_in_a_grasp(panda_plan, jacobian):
     mujoco.mj_fullM(model, data, inertia)
     expected = np.linalg.solve(inertia, data.qfrc_smooth + data.qfrc_constraint)
     assert np.abs(data.qacc - expected).max() <= 1e-6 * max(1.0, np.abs(expected).max())
+
+
+def test_show_of_an_execution_writes_the_rollout_pictures(panda_plan, tmp_path):
+    """``show EXECUTION.json`` writes the rollout's HTML (the object keyed per frame) and
+    its storyboard; the page loads in headless Chromium without a script error."""
+    pytest.importorskip("matplotlib")
+    pytest.importorskip("meshcat")
+    executed = _cli("execute", str(panda_plan), "--object-offset", "0", "0.02", "0",
+                    "--out", str(tmp_path))  # fmt: skip
+    assert executed.returncode in (0, 1), executed.stderr
+    result = _cli("show", str(tmp_path / "execution.json"))
+    assert result.returncode == 0, result.stderr
+    page, board = tmp_path / "execution.html", tmp_path / "execution_storyboard.png"
+    assert page.stat().st_size > 10_000 and board.stat().st_size > 10_000
+    assert '"labels": ["settle' in page.read_text()
+    from test_viz import _headless
+
+    dom = _headless(page, tmp_path, "--dump-dom").stdout
+    assert 'data-state="ready"' in dom
+    assert "data-errors" not in dom
+
+
+def test_show_of_an_execution_without_frames_names_the_fault(panda_plan, tmp_path):
+    """An execution.json without its frames (a sweep's record) is refused in one line."""
+    record = execute_plan(panda_plan, frames=False)
+    path = tmp_path / "execution.json"
+    path.write_text(json.dumps(record.to_dict(frames=False)))
+    result = _cli("show", str(path))
+    assert result.returncode == 2
+    assert len(result.stderr.splitlines()) == 1 and "frames" in result.stderr
