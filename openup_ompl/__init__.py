@@ -19,6 +19,7 @@ from openup_ompl.exceptions import (
     OpenUpError,
     PlanningFailed,
     RobotNotFound,
+    SimulationDiverged,
     UnreachableGrasp,
 )
 from openup_ompl.goal import GraspGoal, IKGoalRegion
@@ -80,6 +81,7 @@ __all__ = [
     "RobustnessOptions",
     "RobustnessResult",
     "Shape",
+    "SimulationDiverged",
     "UnreachableGrasp",
     "__version__",
     "available_robots",

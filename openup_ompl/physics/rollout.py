@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from openup_ompl.exceptions import ConfigError
+from openup_ompl.exceptions import ConfigError, SimulationDiverged
 from openup_ompl.physics.options import PhysicsOptions
 from openup_ompl.physics.record import ExecutionRecord
 from openup_ompl.physics.trajectory import time_path
@@ -290,6 +290,12 @@ class Rollout:
                 kept["object"].append([*p[:3], p[4], p[5], p[6], p[3]])
                 kept["phase"].append(state["phase"])
 
+        def check_stable() -> None:
+            bad = sim.warning[mujoco.mjtWarning.mjWARN_BADQACC].number
+            if bad or not np.all(np.isfinite(sim.qpos)):
+                detail = "bad acceleration, state reset" if bad else "non-finite state"
+                raise SimulationDiverged(state["phase"], state["step"] * dt, detail)
+
         def run_for(seconds: float) -> None:
             for _ in range(round(seconds / dt)):
                 step()
@@ -297,6 +303,7 @@ class Rollout:
         phases: dict[str, float] = {}
         phases["settle"] = options.settle
         run_for(options.settle)
+        check_stable()
         settled = object_transform()
 
         state["phase"] = "reach"
@@ -318,6 +325,7 @@ class Rollout:
                 tracking["reach_hand"] = max(tracking["reach_hand"], float(error[hand].max()))
         ctrl[:] = desired
         phases["reach"] = reach_steps * dt
+        check_stable()
         moved_m, moved_rad = _pose_change(settled, object_transform())
 
         state["phase"] = "close"
@@ -337,6 +345,7 @@ class Rollout:
                 ctrl[follower] = multiplier * ctrl[leader] + off
             step()
         phases["close"] = close_steps * dt
+        check_stable()
         in_palm_closed = np.linalg.inv(palm_transform()) @ object_transform()
         palm_z0 = float(sim.xpos[world.palm_body][2])
         object_z0 = float(sim.xpos[world.object_body][2])
@@ -366,11 +375,13 @@ class Rollout:
             error = np.abs(sim.qpos[world.qpos[arm]] - target)
             tracking["lift_arm"] = max(tracking["lift_arm"], float(error.max()))
         phases["lift"] = lift_steps * dt
+        check_stable()
 
         ctrl[arm] = lift_at(lift_steps)
         state["phase"] = "hold"
         run_for(options.hold)
         phases["hold"] = options.hold
+        check_stable()
 
         in_palm_end = np.linalg.inv(palm_transform()) @ object_transform()
         drift_m, drift_rad = _pose_change(in_palm_closed, in_palm_end)
@@ -475,6 +486,7 @@ def execute_plan(
 
     Raises:
         ConfigError: Not an ``openup-plan/1`` file, a missing URDF, a non-finite offset.
+        SimulationDiverged: MuJoCo went unstable (then no verdict is given).
     """
     from openup_ompl.plan import read_plan
 

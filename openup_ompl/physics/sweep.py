@@ -48,7 +48,7 @@ def physics_run(
     Returns:
         ``{"u", "seed", "planned", "error", "solve_time", "rows", "physics", "trials"}``.
     """
-    from openup_ompl.exceptions import InvalidProblem, PlanningFailed
+    from openup_ompl.exceptions import InvalidProblem, PlanningFailed, SimulationDiverged
     from openup_ompl.physics.rollout import Rollout
     from openup_ompl.planning import GraspPlanningSetup
     from openup_ompl.robustness import check_scene
@@ -77,8 +77,15 @@ def physics_run(
         return record
     record.update(planned=True, solve_time=plan.solve_time_s, rows=int(plan.path.shape[0]))
     rollout = Rollout(plan.to_dict(), options)
-    record["trials"] = [
-        physics_trial(rollout.run((dx, dy, yaw), seed=seed, frames=False).to_dict(frames=False))
-        for dx, dy, yaw in perturbations
-    ]
+    record["trials"] = []
+    for dx, dy, yaw in perturbations:
+        try:
+            trial = physics_trial(
+                rollout.run((dx, dy, yaw), seed=seed, frames=False).to_dict(False)
+            )
+        except SimulationDiverged as error:  # no verdict: a failed trial that says why
+            trial = {"dx": dx, "dy": dy, "yaw": yaw, "success": False, "collision": False,
+                     "touched": False, "moved_before_closing": None, "cause": "diverged",
+                     "verdict": str(error)}  # fmt: skip
+        record["trials"].append(trial)
     return record
