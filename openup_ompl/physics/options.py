@@ -21,6 +21,12 @@ class PhysicsOptions:
 
     Attributes:
         timestep: Simulation step [s] (``implicitfast`` integrator).
+        contact_timeconst: Time constant [s] of the object's contacts (MuJoCo's
+            ``solref[0]``; the object's contacts use its parameters). MuJoCo's default,
+            0.02 s, let the fingers sink 5-20 mm into a 0.1 kg can under the squeeze;
+            0.004 s (twice the timestep, the stiffest MuJoCo advises) keeps it below ~4 mm.
+        contact_solimp: The object's ``solimp`` (impedance at zero and full depth, the
+            depth [m] between them, midpoint, power).
         impratio: MuJoCo's ratio of frictional to normal constraint impedance (with
             elliptic cones; > 1 lets held objects creep less in the fingers).
         arm_kp: Arm position gain [N m / rad].
@@ -58,6 +64,10 @@ class PhysicsOptions:
             same interval.
         lifted_fraction: The object must rise by at least this fraction of
             ``lift_height`` over the lift and hold.
+        max_penetration: Deepest object-obstacle penetration [m] a trial may show; deeper,
+            the hand forced the object into the scene (where a real arm would stall or
+            the object break), which fails the trial as ``"jammed"`` instead of letting
+            it tunnel through the table.
         object_friction: Object sliding friction; ``None``: the scene's ``[object]
             friction``.
         object_mass: Object mass [kg]; ``None``: the scene's ``[object] mass``.
@@ -68,6 +78,8 @@ class PhysicsOptions:
     """
 
     timestep: float = 0.002  # [s]
+    contact_timeconst: float = 0.004  # [s]
+    contact_solimp: tuple[float, float, float, float, float] = (0.95, 0.99, 0.001, 0.5, 2.0)
     impratio: float = 10.0
     arm_kp: float = 2000.0  # [N m / rad]
     arm_kv: float = 100.0  # [N m s / rad]
@@ -93,13 +105,34 @@ class PhysicsOptions:
     success_distance: float = 0.05  # [m]
     success_angle: float = math.radians(15.0)  # [rad]
     lifted_fraction: float = 0.5
+    max_penetration: float = 0.005  # [m]
     object_friction: float | None = None
     object_mass: float | None = None
     object_jitter: float = 0.0  # [m]
     frame_period: float = 0.02  # [s]
 
     def __post_init__(self) -> None:
+        solimp = self.contact_solimp
+        if not (
+            len(solimp) == 5
+            and all(math.isfinite(x) for x in solimp)
+            and 0 < solimp[0] <= solimp[1] < 1
+            and solimp[2] > 0
+        ):
+            raise ConfigError(
+                "PhysicsOptions.contact_solimp",
+                solimp,
+                "(d0, dwidth, width, mid, power), 0 < d0 <= dwidth < 1",
+            )
+        if self.contact_timeconst < 2 * self.timestep:
+            raise ConfigError(
+                "PhysicsOptions.contact_timeconst",
+                self.contact_timeconst,
+                f"at least twice the timestep ({2 * self.timestep:g} s)",
+            )
         for item in fields(self):
+            if item.name == "contact_solimp":
+                continue
             value = getattr(self, item.name)
             if value is None and item.name in ("object_friction", "object_mass"):
                 continue

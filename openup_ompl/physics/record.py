@@ -32,8 +32,12 @@ class ExecutionRecord:
 
     Attributes:
         success: The grasp held (see :attr:`cause` otherwise).
-        cause: Why it failed (``"obstacle contact"``, ``"not lifted"``, ``"slipped"``,
-            ``"dropped"``, ``"no contact"``), or ``None``.
+        cause: Why it failed, first that applies: ``"obstacle contact"`` (a robot link
+            touched an obstacle), ``"jammed"`` (the object pressed into an obstacle deeper
+            than ``max_penetration``), ``"fell"`` (the object went lower than any pose
+            resting on its support: off the table), ``"no contact"`` (the hand holds
+            nothing at the end), ``"dropped"`` (lifted, then lost), ``"not lifted"``,
+            ``"slipped"`` (moved in the hand beyond the thresholds); ``None`` if held.
         verdict: One line for people.
         offset: The object's true pose error ``{"dx": m, "dy": m, "yaw": rad}`` against the
             plan's nominal pose (world x, y; about the object's own z).
@@ -52,6 +56,10 @@ class ExecutionRecord:
             lift and hold.
         in_hand: Motion of the object in the palm frame from the end of closing to the
             end of the hold: ``{"mm", "deg"}``.
+        penetration: Deepest contact penetration [mm] ``{"object_obstacle_mm",
+            "robot_object_mm"}``: MuJoCo's contacts are soft; beyond
+            ``PhysicsOptions.max_penetration`` between object and obstacle the trial is
+            ``"jammed"`` (the hand forced the object into the scene).
         phases: Duration of each phase [s]: ``settle, reach, close, lift, hold``.
         plan: What was executed: ``{"robot", "planner", "seed", "u", "rows"}``.
         options: The :class:`~openup_ompl.physics.options.PhysicsOptions` used.
@@ -76,6 +84,7 @@ class ExecutionRecord:
     final_contacts: list[dict[str, str]]
     lift: dict[str, float]
     in_hand: dict[str, float]
+    penetration: dict[str, float]
     phases: dict[str, float]
     plan: dict[str, Any]
     options: dict[str, Any]

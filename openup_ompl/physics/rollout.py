@@ -223,6 +223,8 @@ class Rollout:
         mujoco.mj_forward(model, sim)
 
         dt = model.opt.timestep
+        # Lower than any pose resting on its support allows: the object went through it.
+        floor = float(true_pose[2]) - float(model.geom_rbound[world.object_geom]) - 0.01
         hand, arm = world.hand, world.arm
         kinds, links = world.geom_kind, world.geom_link
         period = max(1, round(options.frame_period / dt))
@@ -233,6 +235,10 @@ class Rollout:
             "obstacles": {},
             "phase": "settle",
             "touched": False,
+            "pressed": 0.0,
+            "sunk": None,
+            "pressed_phase": None,
+            "gripped": 0.0,
         }
         tracking = {"reach_arm": 0.0, "reach_hand": 0.0, "lift_arm": 0.0}
 
@@ -252,9 +258,20 @@ class Rollout:
             sim.ctrl[world.actuator] = ctrl
             mujoco.mj_step(model, sim)
             state["step"] += 1
+            if state["sunk"] is None and sim.qpos[world.object_qpos + 2] < floor:
+                state["sunk"] = state["phase"]
             time = state["step"] * dt
             if sim.ncon:
                 pairs = kinds[sim.contact.geom[: sim.ncon]]
+                depth = -sim.contact.dist[: sim.ncon]
+                pressed = ((pairs == OBJECT) & (pairs[:, ::-1] == OBSTACLE)).any(axis=1)
+                if pressed.any():
+                    deepest = float(depth[pressed].max())
+                    if deepest > state["pressed"]:
+                        state["pressed"], state["pressed_phase"] = deepest, state["phase"]
+                gripped = ((pairs == OBJECT) & (pairs[:, ::-1] == ROBOT)).any(axis=1)
+                if gripped.any():
+                    state["gripped"] = max(state["gripped"], float(depth[gripped].max()))
                 for i in np.flatnonzero((pairs == ROBOT).any(axis=1)):
                     g = sim.contact.geom[i]
                     other = int(g[1] if kinds[g[0]] == ROBOT else g[0])
@@ -410,6 +427,10 @@ class Rollout:
         cause: str | None = None
         if obstacle_contacts:
             cause = "obstacle contact"
+        elif state["pressed"] > options.max_penetration:
+            cause = "jammed"
+        elif state["sunk"] is not None:
+            cause = "fell"
         elif not holding:
             cause = "dropped" if object_rise > 0.01 else "no contact"
         elif not lifted:
@@ -421,6 +442,17 @@ class Rollout:
             verdict = (
                 f"held: {name} lifted {object_rise * 1e3:.0f} mm, moved {drift_m * 1e3:.1f} mm /"
                 f" {math.degrees(drift_rad):.1f} deg in the hand over the hold"
+            )
+        elif cause == "jammed":
+            verdict = (
+                f"failed (jammed): the hand forced {name} {state['pressed'] * 1e3:.0f} mm into"
+                f" an obstacle during the {state['pressed_phase']} (a real arm would stall;"
+                " MuJoCo's soft contact gave way)"
+            )
+        elif cause == "fell":
+            verdict = (
+                f"failed (fell): {name} dropped below any pose resting on its support during"
+                f" the {state['sunk']} (off the table or through it)"
             )
         elif cause == "obstacle contact":
             first = obstacle_contacts[0]
@@ -450,6 +482,10 @@ class Rollout:
             final_contacts=[{"link": a, "with": b} for a, b in sorted(final)],
             lift={"palm_mm": palm_rise * 1e3, "object_mm": object_rise * 1e3},
             in_hand={"mm": drift_m * 1e3, "deg": math.degrees(drift_rad)},
+            penetration={
+                "object_obstacle_mm": state["pressed"] * 1e3,
+                "robot_object_mm": state["gripped"] * 1e3,
+            },
             phases=phases,
             plan={
                 "robot": robot.get("name"),

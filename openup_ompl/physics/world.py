@@ -115,6 +115,7 @@ class World:
         object_qpos: ``qpos`` address of the object's free joint (position, then the
             scalar-first quaternion).
         object_dof: ``qvel`` address of the free joint.
+        object_geom: Geom index of the object.
         geom_kind: Per geom: :data:`ROBOT`, :data:`OBSTACLE`, :data:`OBJECT` or
             :data:`FIXED_ROBOT` (robot links welded to the world).
         geom_link: Per geom: the link (body) or shape name.
@@ -138,6 +139,7 @@ class World:
     object_body: int
     object_qpos: int
     object_dof: int
+    object_geom: int
     geom_kind: np.ndarray
     geom_link: list[str]
     mimic: list[tuple[int, int, float, float]]
@@ -229,9 +231,18 @@ def build_world(data: dict[str, Any], options: PhysicsOptions | None = None) -> 
     if options.object_friction is not None:
         scene_object = _with(scene_object, friction=options.object_friction)
     # condim 4: the object resists spinning about a contact normal (a pinched can);
-    # priority 1: its friction is the coefficient of every contact it makes (MuJoCo would
-    # otherwise take the larger of the two geoms', 1.0 for the robot's and the table's).
-    add_scene(spec, obstacles, scene_object, free_object=True, condim=4, priority=1)
+    # priority 1: its friction and contact softness are those of every contact it makes
+    # (MuJoCo would otherwise take the larger friction, 1.0 for the robot's and the table's).
+    add_scene(
+        spec,
+        obstacles,
+        scene_object,
+        free_object=True,
+        condim=4,
+        priority=1,
+        solref=[options.contact_timeconst, 1.0],
+        solimp=list(options.contact_solimp),
+    )
     for geom in spec.geoms:
         if geom.parent.name in ("world", "object"):
             geom.contype, geom.conaffinity = 1, 1
@@ -292,6 +303,7 @@ def build_world(data: dict[str, Any], options: PhysicsOptions | None = None) -> 
         object_body=object_body,
         object_qpos=int(model.jnt_qposadr[object_joint]),
         object_dof=int(model.jnt_dofadr[object_joint]),
+        object_geom=int(np.flatnonzero(kinds == OBJECT)[0]),
         geom_kind=kinds,
         geom_link=links,
         mimic=mimic,
