@@ -106,6 +106,8 @@ def test_nominal_panda_plan_lifts_its_can(nominal):
     assert nominal.lift["object_mm"] >= 90
     assert {c["with"] for c in nominal.final_contacts} == {"can"}
     assert not nominal.obstacle_contacts
+    # Stiff contacts: the squeezing fingers sink less than 2 mm into the can.
+    assert nominal.penetration["robot_object_mm"] < 2.0
 
 
 def test_object_15_cm_away_is_not_lifted(panda_plan):
