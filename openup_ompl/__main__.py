@@ -150,9 +150,13 @@ def build_parser() -> argparse.ArgumentParser:
     demo.set_defaults(handler=_demo_command)
 
     show = commands.add_parser(
-        "show", help="write a plan's pictures: HTML animation, storyboard, hand law figure"
+        "show",
+        help="write a plan's pictures: HTML animation, storyboard, hand law figure (or an"
+        " execution's: the rollout animated, a reach / close / lift storyboard)",
     )
-    show.add_argument("plan", type=Path, help="plan JSON (README, Files: Plan)")
+    show.add_argument(
+        "plan", type=Path, help="plan JSON (README, Files: Plan), or an execution.json"
+    )
     show.add_argument(
         "--out", type=Path, default=None, help="output directory (default: the plan's)"
     )
@@ -207,6 +211,28 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--quiet", action="store_true", help="no progress on stderr")
     bench.set_defaults(handler=_benchmark_command)
 
+    execute = commands.add_parser(
+        "execute",
+        help="run a plan in physics (MuJoCo): reach with the object free, close, lift 10 cm,"
+        " hold; exit 0 held, 1 failed",
+    )
+    execute.add_argument("plan", type=Path, help="plan JSON (README, Files: Plan)")
+    execute.add_argument(
+        "--object-offset",
+        type=float,
+        nargs=3,
+        default=(0.0, 0.0, 0.0),
+        metavar=("DX", "DY", "YAW"),
+        help="true object pose error: world x, y [m] and yaw about its own z [rad]",
+    )
+    execute.add_argument(
+        "--out", type=Path, default=None, help="output directory (default: the plan's)"
+    )
+    execute.add_argument(
+        "--seed", type=_seed, default=1, help="run seed (draws PhysicsOptions.object_jitter)"
+    )
+    execute.set_defaults(handler=_execute_command)
+
     robust = commands.add_parser(
         "robustness",
         help="the paper's experiment: plan at the nominal object pose, execute against"
@@ -257,6 +283,13 @@ def build_parser() -> argparse.ArgumentParser:
         "--open-arrival",
         action="store_true",
         help="plan with the extension that reaches the grasp opened by u",
+    )
+    robust.add_argument(
+        "--execute",
+        choices=("kinematic", "physics"),
+        default="kinematic",
+        help="judge each trial kinematically (welded object, force closure; the default)"
+        " or in physics (MuJoCo: the object free, close, lift, hold)",
     )
     robust.add_argument(
         "--out", type=Path, default=Path("openup-robustness"), help="output directory"
@@ -351,6 +384,7 @@ def _robustness_command(args: argparse.Namespace) -> int:
         friction=args.friction,
         open_arrival=args.open_arrival,
         torsion=args.torsion,
+        execute=args.execute,
     )
     result = run_robustness(
         args.scene,
@@ -368,6 +402,15 @@ def _robustness_command(args: argparse.Namespace) -> int:
         print(f"grasps of one plan written to {result.grasps}")
     print(f"every trial in {result.trials}")
     return 0
+
+
+def _execute_command(args: argparse.Namespace) -> int:
+    from openup_ompl.physics import execute_plan, write_execution
+
+    record = execute_plan(args.plan, args.object_offset, seed=args.seed)
+    path = write_execution(record, args.out if args.out is not None else args.plan.parent)
+    print(f"{record.verdict} (execution written to {path})")
+    return 0 if record.success else 1
 
 
 def _benchmark_command(args: argparse.Namespace) -> int:
@@ -458,6 +501,15 @@ def _print_shown(plan: Path, out: Path | None) -> None:
 
 
 def _show_command(args: argparse.Namespace) -> int:
+    from openup_ompl.physics.record import is_execution
+
+    if is_execution(args.plan):
+        from openup_ompl.viz.rollout import show_execution
+
+        shown = show_execution(args.plan, args.out)
+        print(f"rollout animation written to {shown.html} (open it in a browser)")
+        print(f"rollout storyboard written to {shown.storyboard}")
+        return 0
     _print_shown(args.plan, args.out)
     return 0
 

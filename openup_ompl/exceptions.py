@@ -232,3 +232,23 @@ class TooFewPoints(PerceptionError):
             f"the object's point cloud has {points} points: expected at least {needed}"
             " (more points than the superquadric's 11 parameters)"
         )
+
+
+class SimulationDiverged(OpenUpError):
+    """The physics simulation became unstable (MuJoCo reported a bad acceleration or a
+    non-finite state) during a rollout: its verdict would be meaningless.
+
+    Attributes:
+        phase: The rollout phase (``settle``, ``reach``, ``close``, ``lift``, ``hold``).
+        time: Simulated time [s] at which it was noticed.
+        detail: What MuJoCo reported.
+    """
+
+    def __init__(self, phase: str, time: float, detail: str) -> None:
+        self.phase = phase
+        self.time = time
+        self.detail = detail
+        super().__init__(
+            f"the physics simulation diverged during the {phase} at {time:.3f} s ({detail});"
+            " try a smaller PhysicsOptions.timestep"
+        )

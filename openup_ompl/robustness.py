@@ -65,7 +65,9 @@ from openup_ompl.viz.grasps import write_grasp_figure
 
 __all__ = [
     "CSV_COLUMNS",
+    "EXECUTIONS",
     "MAX_DELTA",
+    "PHYSICS_COLUMNS",
     "RobustnessOptions",
     "RobustnessResult",
     "check_scene",
@@ -94,6 +96,11 @@ CSV_COLUMNS = (
     "collisions",
     "force_closure",
 )
+#: The columns a physics sweep adds (``--execute physics``): trials where the hand touched
+#: the object before closing, and the median object displacement before closing [mm].
+PHYSICS_COLUMNS = ("touched", "moved_mm")
+#: How trials are executed: ``kinematic`` (the default) or ``physics`` (MuJoCo).
+EXECUTIONS = ("kinematic", "physics")
 #: Largest pose error [m] accepted: beyond it the "error" is a different scene.
 MAX_DELTA = 0.25
 
@@ -121,6 +128,8 @@ class RobustnessOptions:
             extension, :func:`~openup_ompl.hand_law.open_hand`) instead of Algorithm 3.
         torsion: Soft-finger torsional friction [m] of the grasp test; ``None``: the
             robot file's ``[hand].torsion`` (0, point contacts, if it has none).
+        execute: ``"kinematic"`` (welded object, force closure) or ``"physics"`` (each
+            trial a MuJoCo rollout, :mod:`openup_ompl.physics.sweep`).
     """
 
     us: tuple[float, ...] = (0.0, 0.1, 0.3, 0.5, 1.0)
@@ -133,6 +142,7 @@ class RobustnessOptions:
     friction: float = 0.5
     open_arrival: bool = False
     torsion: float | None = None
+    execute: str = "kinematic"
 
     def __post_init__(self) -> None:
         def values(name: str, raw: Sequence[float], ok: Any, expected: str) -> tuple[float, ...]:
@@ -172,6 +182,8 @@ class RobustnessOptions:
         check_time_limit(self.time_limit, "time")
         if not (math.isfinite(self.friction) and self.friction >= 0):
             raise ConfigError("friction", self.friction, "a coefficient >= 0")
+        if self.execute not in EXECUTIONS:
+            raise ConfigError("execute", self.execute, f"one of {list(EXECUTIONS)}")
         if self.torsion is not None:
             check_torsion(self.torsion)
 
@@ -251,6 +263,10 @@ def make_tasks(scene: str | Path, options: RobustnessOptions) -> list[Task]:
         "open_arrival": bool(options.open_arrival),
         "torsion": options.torsion,
     }
+    function = "openup_ompl.robustness:robustness_run"
+    if options.execute == "physics":
+        shared["execute"] = "physics"
+        function = "openup_ompl.physics.sweep:physics_run"
     digest = hashlib.sha1(json.dumps(shared, sort_keys=True).encode()).hexdigest()[:10]
     tasks = []
     for u in options.us:
@@ -259,7 +275,7 @@ def make_tasks(scene: str | Path, options: RobustnessOptions) -> list[Task]:
             tasks.append(
                 Task(
                     key=f"u{u:g}-seed{seed}-{digest}",
-                    function="openup_ompl.robustness:robustness_run",
+                    function=function,
                     kwargs={**shared, "u": float(u)},
                     seed=seed,
                 )
@@ -380,11 +396,22 @@ def summarize(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
             row["trials"] += 1
             row["successes"] += int(trial["success"])
             row["collisions"] += int(trial["collision"])
-            row["force_closure"] += int(trial["force_closure"])
+            row["force_closure"] += int(bool(trial.get("force_closure")))
+            if "touched" in trial:
+                row.setdefault("touched", 0)
+                row["touched"] += int(trial["touched"])
+                moved = trial.get("moved_before_closing")
+                row.setdefault("moved", []).extend([moved["mm"]] if moved else [])
     rows = []
     for row in cells.values():
         row["success_rate"] = row["successes"] / row["trials"]
-        rows.append({column: row[column] for column in CSV_COLUMNS})
+        columns = {column: row[column] for column in CSV_COLUMNS}
+        if "touched" in row:
+            # Physics: no force-closure test; the median of the planned trials' moves.
+            columns["force_closure"] = ""
+            moved = row["moved"]
+            columns |= {"touched": row["touched"], "moved_mm": np.median(moved) if moved else ""}
+        rows.append(columns)
     return rows
 
 
@@ -447,14 +474,20 @@ def run_robustness(
     rows = summarize(records)
     trials = out / "trials.json"
     trials.write_text(json.dumps(records, indent=1) + "\n")
-    csv_path = write_csv(rows, out / "robustness.csv", CSV_COLUMNS)
+    physics = options.execute == "physics"
+    csv_path = write_csv(
+        rows, out / "robustness.csv", (*CSV_COLUMNS, *(PHYSICS_COLUMNS if physics else ()))
+    )
     markdown = out / "robustness.md"
     law = "open-arrival variant" if options.open_arrival else "Algorithm 3"
     torsion = problem.robot.spec.torsion if options.torsion is None else options.torsion
     contacts = f", soft fingers {torsion * 1e3:g} mm" if torsion > 0 else ""
+    judge = (
+        "executed in physics (MuJoCo)" if physics else f"friction {options.friction:g}{contacts}"
+    )
     title = (
         f"{problem.robot.name}, {scene.name}, {law}: {options.seeds} plans per u "
-        f"({options.planner}, {options.time_limit:g} s), friction {options.friction:g}{contacts}"
+        f"({options.planner}, {options.time_limit:g} s), {judge}"
     )
     markdown.write_text(
         f"# Robustness to object pose errors\n\n{title}\n\n" + markdown_tables(rows)
@@ -467,7 +500,7 @@ def run_robustness(
         print(f"no plot: {error}", file=sys.stderr)
         plot = None
     grasps = None
-    if plot is not None:
+    if plot is not None and options.execute == "kinematic":
         figure = figure_trials(problem, options, torsion)
         if figure is not None:
             grasps = write_grasp_figure(figure[0], figure[1], out / "grasps.png")

@@ -77,13 +77,15 @@ def write_csv(
     rows: Sequence[dict[str, Any]], path: Path, columns: Sequence[str] | None = None
 ) -> Path:
     """``robustness.csv``: ``columns`` (default: the first row's keys, in order), one row
-    per cell, ``success_rate`` to four decimals."""
+    per cell, ``success_rate`` to four decimals and a physics sweep's ``moved_mm`` to two."""
     columns = list(columns if columns is not None else rows[0])
     with path.open("w", newline="") as handle:
         writer = csv.DictWriter(handle, fieldnames=columns)
         writer.writeheader()
         for row in rows:
-            writer.writerow({**row, "success_rate": f"{row['success_rate']:.4f}"})
+            moved = row.get("moved_mm")
+            extra = {"moved_mm": f"{moved:.2f}"} if isinstance(moved, float) else {}
+            writer.writerow({**row, "success_rate": f"{row['success_rate']:.4f}", **extra})
     return path
 
 

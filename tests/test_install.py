@@ -29,9 +29,7 @@ def installed(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, dic
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     env["OPENUP_OMPL_CACHE"] = str(base / "cache")
     venv = base / "venv"
-    subprocess.run(
-        [sys.executable, "-m", "venv", "--system-site-packages", str(venv)], check=True
-    )
+    subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", str(venv)], check=True)
     python = venv / "bin" / "python"
     isolation = [] if importlib.util.find_spec("hatchling") is None else ["--no-build-isolation"]
     done = _run(

@@ -47,7 +47,7 @@ __all__ = [
     "write_csv",
 ]
 
-#: The columns of the experiment's CSV (CONTRACT §6), then diagnostics.
+#: The columns of the experiment's CSV (README, Perception), then diagnostics.
 CSV_COLUMNS = (
     "policy",
     "noise",

@@ -1,1 +1,24 @@
-"""Physics execution of plans in MuJoCo (optional: ``pip install mujoco``)."""
+"""Physics execution of plans in MuJoCo: the object free, the hand closing, a lift test.
+
+:func:`execute_plan` runs a plan file (reach, close, lift, hold) and returns its
+:class:`ExecutionRecord`; :mod:`~openup_ompl.physics.sweep` runs the paper's experiment
+that way (``openup-ompl robustness --execute physics``). Modules: ``options`` (the
+settings), ``world`` (the MuJoCo model of a plan), ``shapes`` (scene shapes as geoms),
+``trajectory`` (timing), ``rollout`` (control and verdict), ``record`` (the file).
+"""
+
+from openup_ompl.physics.options import PhysicsOptions
+from openup_ompl.physics.record import ExecutionRecord, read_execution, write_execution
+from openup_ompl.physics.rollout import Rollout, execute_plan
+from openup_ompl.physics.world import World, build_world
+
+__all__ = [
+    "ExecutionRecord",
+    "PhysicsOptions",
+    "Rollout",
+    "World",
+    "build_world",
+    "execute_plan",
+    "read_execution",
+    "write_execution",
+]

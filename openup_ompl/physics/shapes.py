@@ -17,10 +17,10 @@ if TYPE_CHECKING:
 
     from openup_ompl.scene import Problem, Shape
 
-__all__ = ["add_shape", "mujoco_quat", "scene_spec"]
+__all__ = ["add_scene", "add_shape", "mujoco_quat", "scene_spec"]
 
 
-def mujoco_quat(pose: Sequence[float]) -> np.ndarray:
+def mujoco_quat(pose: Sequence[float] | np.ndarray) -> np.ndarray:
     """``[qw, qx, qy, qz]`` of a ``[x, y, z, qx, qy, qz, qw]`` pose."""
     q = np.asarray(pose, dtype=float)[3:7]
     return np.array([q[3], q[0], q[1], q[2]])
@@ -67,19 +67,35 @@ def scene_spec(problem: Problem, *, free_object: bool = False) -> mujoco.MjSpec:
     import mujoco
 
     spec = mujoco.MjSpec()
-    for obstacle in problem.obstacles:
-        add_shape(spec.worldbody, obstacle, **_contact(obstacle))
-    if problem.object is not None:
-        pose = np.asarray(problem.object.pose, dtype=float)
-        body = spec.worldbody.add_body(
-            name="object", pos=pose[:3].tolist(), quat=mujoco_quat(pose).tolist()
-        )
-        if free_object:
-            body.add_freejoint(name="object")
-        add_shape(
-            body, problem.object, local=True, mass=problem.object.mass, **_contact(problem.object)
-        )
+    add_scene(spec, problem.obstacles, problem.object, free_object=free_object)
     return spec
+
+
+def add_scene(
+    spec: mujoco.MjSpec,
+    obstacles: Sequence[Shape],
+    scene_object: Shape | None,
+    *,
+    free_object: bool = False,
+    **object_attributes: Any,
+) -> mujoco.MjsBody | None:
+    """Add a scene's obstacles (static geoms of the world body) and its object (a geom of
+    the body ``"object"``, free if ``free_object``) to ``spec``; returns the object's
+    body. ``object_attributes`` override the object geom's (``friction``, ``mass``,
+    ``condim``, ...)."""
+    for obstacle in obstacles:
+        add_shape(spec.worldbody, obstacle, **_contact(obstacle))
+    if scene_object is None:
+        return None
+    pose = np.asarray(scene_object.pose, dtype=float)
+    body = spec.worldbody.add_body(
+        name="object", pos=pose[:3].tolist(), quat=mujoco_quat(pose).tolist()
+    )
+    if free_object:
+        body.add_freejoint(name="object")
+    attributes = {"mass": scene_object.mass, **_contact(scene_object), **object_attributes}
+    add_shape(body, scene_object, local=True, **attributes)
+    return body
 
 
 def _contact(shape: Shape) -> dict[str, Any]:

@@ -56,6 +56,26 @@ class HtmlOptions:
             raise ConfigError("html hold", self.hold, "a duration >= 0 [s]")
 
 
+@dataclass(frozen=True)
+class Motion:
+    """A recorded motion to animate instead of the plan's rows (a physics rollout).
+
+    Attributes:
+        q: ``(K, nq)`` configurations, one per key frame (the plan's joint order).
+        object_poses: ``(K, 7)`` object poses ``[x, y, z, qx, qy, qz, qw]`` (world
+            frame), or ``None``: the object stays where the scene puts it.
+        labels: One line per key frame shown above the readout (phase, time, ...).
+        fps: Key frames per second [1/s] (the recording's rate plays it in real time).
+        details: The panel's second line.
+    """
+
+    q: np.ndarray
+    object_poses: np.ndarray | None
+    labels: list[str]
+    fps: float
+    details: str = ""
+
+
 class _Recorder:
     """Stands in for MeshCat's ZMQ window: keeps each command as the msgpack bytes the
     server would forward to the browser."""
@@ -140,13 +160,46 @@ def _readout(scene: PlanScene, rows: np.ndarray) -> dict[str, Any]:
     }
 
 
-def write_html(scene: PlanScene, out: str | Path, options: HtmlOptions | None = None) -> Path:
+def _motion_readout(scene: PlanScene, motion: Motion) -> dict[str, Any]:
+    """Per key frame values of a recorded motion: time share, ``d`` of the palm, hand."""
+    data = scene.model.createData()
+    palms = []
+    for q in motion.q:
+        pin.framesForwardKinematics(scene.model, data, q)
+        palms.append(data.oMf[scene.palm_frame_id].translation.copy())
+    start = max(float(np.linalg.norm(scene.palm[0] - scene.grasp.translation)), 1e-12)
+    d = np.linalg.norm(np.array(palms) - scene.grasp.translation, axis=1) / start
+    hand = motion.q[:, scene.hand_idx]
+    progress = np.linspace(0.0, 1.0, len(motion.q))
+    opening = scene.opening(hand)
+    return {
+        "progress": np.round(progress, 4).tolist(),
+        "d": np.round(d, 4).tolist(),
+        "opening": np.round(opening, 4).tolist(),
+        "hand": [scene.hand_text(h) for h in hand],
+        "mga": scene.law.mga,
+        "labels": list(motion.labels),
+        "curve": {
+            "progress": np.round(progress, 4).tolist(),
+            "opening": np.round(opening, 4).tolist(),
+        },
+    }
+
+
+def write_html(
+    scene: PlanScene,
+    out: str | Path,
+    options: HtmlOptions | None = None,
+    motion: Motion | None = None,
+) -> Path:
     """Write the interactive animation of a plan as one self-contained HTML file.
 
     Args:
         scene: The plan, loaded (:meth:`PlanScene.from_file`).
         out: HTML file to write.
         options: Timing of the animation.
+        motion: A recorded motion (e.g. a physics rollout, with the object moving) to
+            animate instead of the plan's rows.
 
     Returns:
         The HTML file's path.
@@ -188,12 +241,20 @@ def write_html(scene: PlanScene, out: str | Path, options: HtmlOptions | None = 
         mg.Line(palm_path, mg.LineBasicMaterial(color=PATH_COLOR, linewidth=2))
     )
 
-    rows = _frames(scene, options)
-    animation = animation_class(default_framerate=options.fps)
-    for key, row in enumerate(rows):
+    fps: float = options.fps
+    if motion is None:
+        rows = _frames(scene, options)
+        keyed, readout = scene.path[rows], _readout(scene, rows)
+    else:
+        keyed, readout, fps = motion.q, _motion_readout(scene, motion), motion.fps
+    animation = animation_class(default_framerate=fps)
+    for key, q in enumerate(keyed):
         with animation.at_frame(viewer, key) as frame:
             robot.viewer = frame
-            robot.display(scene.path[row])
+            robot.display(q)
+            if motion is not None and motion.object_poses is not None:
+                placement = pin.XYZQUATToSE3(motion.object_poses[key])
+                frame["scene/object"].set_transform(placement.homogeneous)
     robot.viewer = viewer
     viewer.set_animation(animation, play=True, repetitions=1_000_000)
 
@@ -201,17 +262,19 @@ def write_html(scene: PlanScene, out: str | Path, options: HtmlOptions | None = 
     bundle = Path(meshcat.__file__).parent / "viewer" / "dist" / "main.min.js"
     law = scene.law
     title = f"{scene.name}: {scene.plan.planner}"
+    details = (
+        f"u = {law.u:g}, mga = {law.mga:g}"
+        + (", fixed hand" if law.fixed is not None else "")
+        + f" · seed {scene.plan.seed} · {len(scene.path)} states"
+    )
     info = {
         "title": title,
-        "details": (
-            f"u = {law.u:g}, mga = {law.mga:g}"
-            + (", fixed hand" if law.fixed is not None else "")
-            + f" · seed {scene.plan.seed} · {len(scene.path)} states"
-        ),
-        "fps": options.fps,
-        "hold": round(options.hold * options.fps),  # key frames of each pause
+        "details": details if motion is None or not motion.details else motion.details,
+        "fps": fps,
+        # Key frames of each pause at the ends of a plan's animation (a rollout has none).
+        "hold": 0 if motion is not None else round(options.hold * options.fps),
         "camera": _camera(scene),
-        "frames": _readout(scene, rows),
+        "frames": readout,
     }
     page = (
         _PAGE.replace("%TITLE%", html.escape(title))
@@ -280,12 +343,14 @@ function showFrame() {
   const k = Math.max(0, Math.min(n - 1, Math.round(viewer.animator.time * INFO.fps)));
   const mga = f.d[k] <= f.mga ? " (≤ mga)" : "";
   // The slider's time includes a pause at each end: say so, so that the panel and the
-  // slider agree (the robot stands at its start for the first pause).
+  // slider agree (the robot stands at its start for the first pause). A rollout labels
+  // its own frames.
   const phase =
     k < INFO.hold ? " (pause at the start)" : k >= n - INFO.hold ? " (at the grasp)" : "";
-  document.getElementById("readout").textContent =
+  const where = f.labels ? f.labels[k] :
     "t = " + viewer.animator.time.toFixed(2) + " s" + phase + " · reach " +
-    Math.round(100 * f.progress[k]) + " % · d = " + f.d[k].toFixed(2) + mga +
+    Math.round(100 * f.progress[k]) + " %";
+  document.getElementById("readout").textContent = where + " · d = " + f.d[k].toFixed(2) + mga +
     " · hand " + f.hand[k] + " (" + Math.round(100 * f.opening[k]) + " % of c → w)";
   const cursor = document.getElementById("cursor");
   const x = 4 + f.progress[k] * 292;

@@ -1,0 +1,163 @@
+"""Settings of a physics rollout: one frozen object, every number with its unit."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+from openup_ompl.exceptions import ConfigError
+
+__all__ = ["PhysicsOptions"]
+
+
+@dataclass(frozen=True)
+class PhysicsOptions:
+    """How a plan is executed in MuJoCo (:func:`~openup_ompl.physics.rollout.execute_plan`).
+
+    Gains are those of MuJoCo position actuators (``force = kp (target - q) - kv qdot``,
+    clipped to the force limit); revolute joints take N m / rad, prismatic ones N / m.
+    Defaults were tuned on the three shipped robots (``tests/test_physics.py`` bounds the
+    tracking error they give).
+
+    Attributes:
+        timestep: Simulation step [s] (``implicitfast`` integrator).
+        contact_timeconst: Time constant [s] of the object's contacts (MuJoCo's
+            ``solref[0]``; the object's contacts use its parameters). MuJoCo's default,
+            0.02 s, let the fingers sink 5-20 mm into a 0.1 kg can under the squeeze;
+            0.004 s (twice the timestep, the stiffest MuJoCo advises) keeps it below ~4 mm.
+        contact_solimp: The object's ``solimp`` (impedance at zero and full depth, the
+            depth [m] between them, midpoint, power).
+        impratio: MuJoCo's ratio of frictional to normal constraint impedance (with
+            elliptic cones; > 1 lets held objects creep less in the fingers).
+        arm_kp: Arm position gain [N m / rad].
+        arm_kv: Arm velocity gain [N m s / rad].
+        arm_armature: Reflected rotor inertia added to every arm joint [kg m^2]; with
+            ``implicitfast`` it keeps stiff position loops stable at ``timestep``.
+        arm_force_limit: Arm torque limit [N m] for joints whose URDF gives no effort
+            limit (otherwise the URDF's ``effort``).
+        hand_kp: Hand position gain [N m / rad] (revolute hand joints).
+        hand_kv: Hand velocity gain [N m s / rad] (revolute hand joints).
+        finger_kp: Hand position gain [N / m] (prismatic hand joints, e.g. the Panda's).
+        finger_kv: Hand velocity gain [N s / m] (prismatic hand joints).
+        hand_armature: Armature of every hand joint [kg m^2 or kg].
+        squeeze_torque: Torque limit of a revolute hand joint [N m]: what it presses
+            with once its target has gone past the contact.
+        squeeze_force: Force limit of a prismatic hand joint [N] (per finger).
+        speed: Fraction of the URDF velocity limits the reach moves at (the slowest
+            joint of each segment sets its duration).
+        acceleration: Joint acceleration limit [rad/s^2 or m/s^2] of the reach's timing
+            (along the path and where it turns).
+        velocity_limit: Velocity limit [rad/s or m/s] of joints whose URDF gives none.
+        close_speed: Speed [rad/s] at which the targets of revolute hand joints move
+            towards the closed configuration (times the robot's ``closing_speed``).
+        finger_close_speed: The same for prismatic hand joints [m/s].
+        close_settle: Time [s] the hand keeps squeezing after every target has reached
+            the closed configuration, before the lift.
+        lift_height: Straight-up palm motion of the lift [m] (world z).
+        lift_speed: Mean palm speed of the lift [m/s] (a smoothstep in time: 1.5 times
+            that at its middle).
+        hold: Time [s] the object is held at the top before the verdict.
+        settle: Time [s] the object rests on the scene before the reach starts.
+        success_distance: Largest drift [m] of the object in the palm frame between the
+            end of closing and the end of the hold for a held grasp.
+        success_angle: Largest rotation [rad] of the object in the palm frame over the
+            same interval.
+        lifted_fraction: The object must rise by at least this fraction of
+            ``lift_height`` over the lift and hold.
+        max_penetration: Deepest object-obstacle penetration [m] a trial may show; deeper,
+            the hand forced the object into the scene (where a real arm would stall or
+            the object break), which fails the trial as ``"jammed"`` instead of letting
+            it tunnel through the table.
+        object_friction: Object sliding friction; ``None``: the scene's ``[object]
+            friction``.
+        object_mass: Object mass [kg]; ``None``: the scene's ``[object] mass``.
+        object_jitter: Standard deviation [m] of a random horizontal shift of the object
+            drawn from the run's seed (0: none; the rollout is then deterministic and the
+            seed only recorded).
+        frame_period: Period [s] of the frames kept for the viewer.
+    """
+
+    timestep: float = 0.002  # [s]
+    contact_timeconst: float = 0.004  # [s]
+    contact_solimp: tuple[float, float, float, float, float] = (0.95, 0.99, 0.001, 0.5, 2.0)
+    impratio: float = 10.0
+    arm_kp: float = 2000.0  # [N m / rad]
+    arm_kv: float = 100.0  # [N m s / rad]
+    arm_armature: float = 0.1  # [kg m^2]
+    arm_force_limit: float = 100.0  # [N m]
+    hand_kp: float = 20.0  # [N m / rad]
+    hand_kv: float = 0.5  # [N m s / rad]
+    finger_kp: float = 2000.0  # [N / m]
+    finger_kv: float = 40.0  # [N s / m]
+    hand_armature: float = 0.01  # [kg m^2] or [kg]
+    squeeze_torque: float = 1.0  # [N m]
+    squeeze_force: float = 20.0  # [N]
+    speed: float = 0.5  # [fraction of the URDF velocity limits]
+    acceleration: float = 2.0  # [rad/s^2] or [m/s^2]
+    velocity_limit: float = 1.0  # [rad/s] or [m/s]
+    close_speed: float = 1.0  # [rad/s]
+    finger_close_speed: float = 0.05  # [m/s]
+    close_settle: float = 0.4  # [s]
+    lift_height: float = 0.10  # [m]
+    lift_speed: float = 0.1  # [m/s]
+    hold: float = 2.0  # [s]
+    settle: float = 0.1  # [s]
+    success_distance: float = 0.05  # [m]
+    success_angle: float = math.radians(15.0)  # [rad]
+    lifted_fraction: float = 0.5
+    max_penetration: float = 0.005  # [m]
+    object_friction: float | None = None
+    object_mass: float | None = None
+    object_jitter: float = 0.0  # [m]
+    frame_period: float = 0.02  # [s]
+
+    def __post_init__(self) -> None:
+        solimp = self.contact_solimp
+        if not (
+            len(solimp) == 5
+            and all(math.isfinite(x) for x in solimp)
+            and 0 < solimp[0] <= solimp[1] < 1
+            and solimp[2] > 0
+        ):
+            raise ConfigError(
+                "PhysicsOptions.contact_solimp",
+                solimp,
+                "(d0, dwidth, width, mid, power), 0 < d0 <= dwidth < 1",
+            )
+        if self.contact_timeconst < 2 * self.timestep:
+            raise ConfigError(
+                "PhysicsOptions.contact_timeconst",
+                self.contact_timeconst,
+                f"at least twice the timestep ({2 * self.timestep:g} s)",
+            )
+        for item in fields(self):
+            if item.name == "contact_solimp":
+                continue
+            value = getattr(self, item.name)
+            if value is None and item.name in ("object_friction", "object_mass"):
+                continue
+            zero_ok = item.name in (
+                "settle",
+                "close_settle",
+                "hold",
+                "object_jitter",
+                "arm_armature",
+                "hand_armature",
+                "hand_kv",
+                "finger_kv",
+                "arm_kv",
+                "object_friction",
+            )
+            if not (
+                isinstance(value, (int, float))
+                and math.isfinite(value)
+                and (value >= 0 if zero_ok else value > 0)
+            ):
+                expected = "a number >= 0" if zero_ok else "a positive number"
+                raise ConfigError(f"PhysicsOptions.{item.name}", value, expected)
+        if self.speed > 1:
+            raise ConfigError("PhysicsOptions.speed", self.speed, "a fraction in (0, 1]")
+        if self.lifted_fraction > 1:
+            raise ConfigError(
+                "PhysicsOptions.lifted_fraction", self.lifted_fraction, "a fraction in (0, 1]"
+            )

@@ -1,0 +1,317 @@
+"""The physics world of a plan: its robot and scene in MuJoCo, built from the plan file alone.
+
+The robot is the plan's URDF (``robot.urdf``, meshes found through ``package_dirs``)
+loaded by MuJoCo's URDF importer with collision geometry only; URDF ``<mimic>`` tags
+become joint equality constraints; URDF ``<dynamics>`` (damping, friction) are ignored.
+Every arm and hand joint gets a position actuator
+(:class:`~openup_ompl.physics.options.PhysicsOptions` gains; the URDF's ``effort`` as
+the arm's force limit, the squeeze force or torque as the hand's), every robot body
+gravity compensation (the controller of a real arm and hand cancels their weight), every
+joint armature. The obstacles are static geoms and the object a free body
+(:func:`~openup_ompl.physics.shapes.add_scene`).
+
+Robot geoms collide with the scene, not with each other (the planner checked
+self-collision; MuJoCo's URDF importer would otherwise let neighbouring links that the
+SRDF excludes push each other apart).
+
+Numerics: the ``implicitfast`` integrator (Euler without armature drifted ~0.1 rad on the
+Panda and dropped the object) and the dense constraint Jacobian (``mjJAC_DENSE``: the
+sparse path is never taken, see the README on MuJoCo issue 3767).
+"""
+
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from openup_ompl.exceptions import ConfigError
+from openup_ompl.physics.options import PhysicsOptions
+from openup_ompl.physics.shapes import add_scene
+from openup_ompl.scene import Shape
+
+if TYPE_CHECKING:
+    import mujoco
+
+__all__ = ["COMPILER", "World", "build_world", "plan_shapes", "urdf_spec"]
+
+#: Added to the URDF for MuJoCo's importer: keep mesh paths, drop visual geometry, accept
+#: the URDFs' inertias as they are, keep every link a body (the palm frame among them).
+COMPILER = (
+    '<compiler strippath="false" discardvisual="true" balanceinertia="true" fusestatic="false"/>'
+)
+
+#: Geom classes of :attr:`World.geom_kind`.
+ROBOT, OBSTACLE, OBJECT, FIXED_ROBOT = 0, 1, 2, 3
+
+
+def urdf_spec(urdf: str | Path, package_dirs: list[str]) -> tuple[mujoco.MjSpec, ET.Element]:
+    """MuJoCo spec of a URDF (meshes made absolute, :data:`COMPILER` added) and its
+    parsed tree.
+
+    Raises:
+        ConfigError: The URDF is missing or unreadable, or MuJoCo rejects it.
+    """
+    import mujoco
+
+    from openup_ompl.urdf import _absolute_meshes, _urdf_tree
+
+    path = Path(urdf)
+    if not path.is_file():
+        raise ConfigError("plan robot.urdf", str(path), "an existing URDF file")
+    root = _urdf_tree(path, "plan robot.urdf")
+    _absolute_meshes(root, path, list(package_dirs))
+    for old in root.findall("mujoco"):
+        root.remove(old)
+    extension = ET.SubElement(root, "mujoco")
+    extension.append(ET.fromstring(COMPILER))
+    try:
+        spec = mujoco.MjSpec.from_string(ET.tostring(root, encoding="unicode"))
+    except ValueError as error:
+        raise ConfigError("plan robot.urdf", str(path), f"a URDF MuJoCo loads ({error})") from None
+    return spec, root
+
+
+def plan_shapes(data: dict[str, Any]) -> tuple[list[Shape], Shape]:
+    """The obstacles and the object of a plan file's ``scene`` (validated as scene keys).
+
+    Raises:
+        ConfigError: A malformed shape, or a plan with no object.
+    """
+    scene = data.get("scene") or {}
+    raw_object = scene.get("object")
+    if raw_object is None:
+        raise ConfigError("plan scene.object", None, "an object to grasp")
+    obstacles = [
+        Shape.from_table(t, f"plan scene.obstacles[{i}]")
+        for i, t in enumerate(scene.get("obstacles") or [])
+    ]
+    return obstacles, Shape.from_table(raw_object, "plan scene.object", is_object=True)
+
+
+@dataclass(eq=False)
+class World:
+    """A compiled physics world and the indices a rollout needs.
+
+    Attributes:
+        model: The compiled ``mujoco.MjModel``.
+        joint_names: The plan's ``joint_names`` (each path row in this order).
+        qpos: ``qpos`` address of each of :attr:`joint_names`.
+        dof: ``qvel`` address of each.
+        actuator: Actuator index of each (``ctrl`` order).
+        arm: Indices into :attr:`joint_names` of the arm joints.
+        hand: Indices into :attr:`joint_names` of the hand joints (driven, then followers).
+        prismatic: Per joint of :attr:`joint_names`: prismatic (True) or revolute.
+        velocity_limit: URDF ``velocity`` limit per joint [rad/s or m/s]
+            (:attr:`~openup_ompl.physics.options.PhysicsOptions.velocity_limit` if none).
+        lower: Lower position limit per joint (``-inf`` if unlimited).
+        upper: Upper position limit per joint.
+        palm_body: Body index of the palm frame's link.
+        object_body: Body index of the object.
+        object_qpos: ``qpos`` address of the object's free joint (position, then the
+            scalar-first quaternion).
+        object_dof: ``qvel`` address of the free joint.
+        object_geom: Geom index of the object.
+        geom_kind: Per geom: :data:`ROBOT`, :data:`OBSTACLE`, :data:`OBJECT` or
+            :data:`FIXED_ROBOT` (robot links welded to the world).
+        geom_link: Per geom: the link (body) or shape name.
+        mimic: URDF followers ``(follower, leader, multiplier, offset)`` as indices into
+            :attr:`joint_names`.
+        object_shape: The object as placed in the plan's scene (the nominal pose).
+    """
+
+    model: Any
+    joint_names: list[str]
+    qpos: np.ndarray
+    dof: np.ndarray
+    actuator: np.ndarray
+    arm: np.ndarray
+    hand: np.ndarray
+    prismatic: np.ndarray
+    velocity_limit: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    palm_body: int
+    object_body: int
+    object_qpos: int
+    object_dof: int
+    object_geom: int
+    geom_kind: np.ndarray
+    geom_link: list[str]
+    mimic: list[tuple[int, int, float, float]]
+    object_shape: Shape
+
+
+def _joint_limits(root: ET.Element) -> dict[str, tuple[float, float]]:
+    """``joint -> (velocity, effort)`` from the URDF's ``<limit>`` tags (inf if absent)."""
+    limits = {}
+    for joint in root.iter("joint"):
+        tag = joint.find("limit")
+        velocity = effort = math.inf
+        if tag is not None:
+            velocity = float(tag.get("velocity", "inf")) or math.inf
+            effort = float(tag.get("effort", "inf")) or math.inf
+        limits[str(joint.get("name"))] = (velocity, effort)
+    return limits
+
+
+def build_world(data: dict[str, Any], options: PhysicsOptions | None = None) -> World:
+    """The physics world of a plan file's contents (:func:`~openup_ompl.plan.read_plan`).
+
+    Raises:
+        ConfigError: A missing URDF, a joint or the palm frame absent from it, or a
+            malformed scene.
+    """
+    import mujoco
+
+    from openup_ompl.urdf import _urdf_mimic
+
+    options = options or PhysicsOptions()
+    robot = data.get("robot") or {}
+    names = list(robot.get("joint_names") or [])
+    arm_names = list(robot.get("arm_joints") or [])
+    hand_names = list(robot.get("hand_joints") or [])
+    spec, root = urdf_spec(robot.get("urdf") or "", list(robot.get("package_dirs") or []))
+    obstacles, scene_object = plan_shapes(data)
+    limits = _joint_limits(root)
+
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    spec.option.jacobian = mujoco.mjtJacobian.mjJAC_DENSE
+    spec.option.timestep = options.timestep
+    # Grasping: elliptic friction cones and a high impedance ratio keep soft contacts from
+    # creeping under a held load (MuJoCo's documentation for grasping).
+    spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
+    spec.option.impratio = options.impratio
+    for geom in spec.geoms:
+        geom.contype, geom.conaffinity = 1, 0
+    for body in spec.bodies:
+        if body.name != "world":
+            body.gravcomp = 1.0
+    joints = {joint.name: joint for joint in spec.joints}
+    for name in names:
+        if name not in joints:
+            raise ConfigError("plan robot.joint_names", name, f"a joint of the URDF {list(joints)}")
+    for name in (*arm_names, *hand_names):
+        if name not in names:
+            raise ConfigError("plan robot.arm_joints/hand_joints", name, "one of joint_names")
+    arm_set = set(arm_names)
+    for name in names:
+        joint = joints[name]
+        # URDF <dynamics> are dropped: the servo's gains stand for the drive (the Allegro
+        # URDF's friction of 5-12 N m would hold every finger still).
+        joint.damping, joint.frictionloss = [0.0, 0.0, 0.0], 0.0
+        prismatic = joint.type == mujoco.mjtJoint.mjJNT_SLIDE
+        velocity, effort = limits.get(name, (math.inf, math.inf))
+        if name in arm_set:
+            joint.armature = options.arm_armature
+            kp, kv = options.arm_kp, options.arm_kv
+            force = effort if math.isfinite(effort) else options.arm_force_limit
+        else:
+            joint.armature = options.hand_armature
+            kp, kv = (
+                (options.finger_kp, options.finger_kv)
+                if prismatic
+                else (options.hand_kp, options.hand_kv)
+            )
+            force = options.squeeze_force if prismatic else options.squeeze_torque
+        actuator = spec.add_actuator(name=name, target=name)
+        actuator.trntype = mujoco.mjtTrn.mjTRN_JOINT
+        actuator.gaintype = mujoco.mjtGain.mjGAIN_FIXED
+        actuator.biastype = mujoco.mjtBias.mjBIAS_AFFINE
+        actuator.gainprm[0] = kp
+        actuator.biasprm[:3] = [0.0, -kp, -kv]
+        actuator.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+        actuator.forcerange = [-force, force]
+    if options.object_mass is not None:
+        scene_object = _with(scene_object, mass=options.object_mass)
+    if options.object_friction is not None:
+        scene_object = _with(scene_object, friction=options.object_friction)
+    # condim 4: the object resists spinning about a contact normal (a pinched can);
+    # priority 1: its friction and contact softness are those of every contact it makes
+    # (MuJoCo would otherwise take the larger friction, 1.0 for the robot's and the table's).
+    add_scene(
+        spec,
+        obstacles,
+        scene_object,
+        free_object=True,
+        condim=4,
+        priority=1,
+        solref=[options.contact_timeconst, 1.0],
+        solimp=list(options.contact_solimp),
+    )
+    for geom in spec.geoms:
+        if geom.parent.name in ("world", "object"):
+            geom.contype, geom.conaffinity = 1, 1
+    palm = str(robot.get("palm_frame"))
+    if palm not in {body.name for body in spec.bodies}:
+        raise ConfigError("plan robot.palm_frame", palm, "a link of the URDF")
+    try:
+        model = spec.compile()
+    except ValueError as error:
+        raise ConfigError(
+            "plan robot.urdf", robot.get("urdf"), f"a model MuJoCo compiles ({error})"
+        ) from None
+
+    jid = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n) for n in names]
+    index = {n: i for i, n in enumerate(names)}
+    object_joint = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, "object")
+    object_body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "object")
+    kinds = np.empty(model.ngeom, dtype=np.intp)
+    links = []
+    for g in range(model.ngeom):
+        body = int(model.geom_bodyid[g])
+        if body == 0:
+            kinds[g], name = OBSTACLE, model.geom(g).name
+        elif body == object_body:
+            kinds[g], name = OBJECT, model.geom(g).name
+        else:
+            kinds[g] = ROBOT if model.body_weldid[body] != 0 else FIXED_ROBOT
+            name = model.body(body).name
+        links.append(name)
+    mimic = [
+        (index[m.joint], index[m.leader], m.multiplier, m.offset)
+        for m in _urdf_mimic(root)
+        if m.joint in index and m.leader in index
+    ]
+    limited = model.jnt_limited[jid].astype(bool)
+    ranges = model.jnt_range[jid]
+    return World(
+        model=model,
+        joint_names=names,
+        qpos=model.jnt_qposadr[jid].astype(np.intp),
+        dof=model.jnt_dofadr[jid].astype(np.intp),
+        actuator=np.array(
+            [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, n) for n in names],
+            dtype=np.intp,
+        ),
+        arm=np.array([index[n] for n in arm_names], dtype=np.intp),
+        hand=np.array([index[n] for n in hand_names], dtype=np.intp),
+        prismatic=model.jnt_type[jid] == mujoco.mjtJoint.mjJNT_SLIDE,
+        velocity_limit=np.array(
+            [
+                v if math.isfinite(v) else options.velocity_limit
+                for v in (limits.get(n, (math.inf, 0.0))[0] for n in names)
+            ]
+        ),
+        lower=np.where(limited, ranges[:, 0], -np.inf),
+        upper=np.where(limited, ranges[:, 1], np.inf),
+        palm_body=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, palm),
+        object_body=object_body,
+        object_qpos=int(model.jnt_qposadr[object_joint]),
+        object_dof=int(model.jnt_dofadr[object_joint]),
+        object_geom=int(np.flatnonzero(kinds == OBJECT)[0]),
+        geom_kind=kinds,
+        geom_link=links,
+        mimic=mimic,
+        object_shape=scene_object,
+    )
+
+
+def _with(shape: Shape, **changes: Any) -> Shape:
+    import dataclasses
+
+    return dataclasses.replace(shape, **changes)

@@ -1,0 +1,272 @@
+"""Physics execution (openup_ompl.physics): the MuJoCo world, the rollout and its verdict."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import openup_ompl as ou
+from openup_ompl.exceptions import ConfigError
+from openup_ompl.physics import PhysicsOptions, Rollout, build_world, execute_plan, read_execution
+from openup_ompl.physics.trajectory import time_path
+
+mujoco = pytest.importorskip("mujoco")
+
+SCENES = Path(__file__).resolve().parents[1] / "scenes"
+#: Largest arm tracking error [rad] along a plan at the default gains (measured 3-11 mrad
+#: on the three shipped robots' demo plans).
+ARM_TRACKING_BOUND = 0.02
+#: Largest hand tracking error [rad or m] before any contact (the Allegro's law jumps at
+#: mga, ~0.05 rad measured).
+HAND_TRACKING_BOUND = 0.1
+
+
+def _plan_dict(scene: Path) -> dict:
+    """A plan file's contents for a scene with a one-row path at the start: enough to
+    build its world."""
+    problem = ou.load_scene(scene)
+    robot = problem.robot
+    q = robot.full_q(problem.start, problem.hand_law.c[: robot.n_driven])
+    return {
+        "format": "openup-plan/1",
+        "robot": {
+            "name": robot.name,
+            "urdf": str(robot.urdf),
+            "package_dirs": list(robot.package_dirs),
+            "palm_frame": robot.spec.palm_frame,
+            "joint_names": robot.joint_names,
+            "arm_joints": list(robot.spec.arm_joints),
+            "hand_joints": list(robot.hand_joints),
+        },
+        "scene": {
+            "object": problem.object.raw if problem.object else None,
+            "obstacles": [shape.raw for shape in problem.obstacles],
+        },
+        "hand_law": {**problem.hand_law.to_dict(), "start_palm_distance": 0.3},
+        "grasp_pose": problem.grasp_pose.tolist(),
+        "path": [q.tolist()],
+    }
+
+
+@pytest.fixture(scope="module")
+def panda_plan(tmp_path_factory) -> Path:
+    """The Panda demo scene planned once (seed 1), as a plan file."""
+    setup = ou.GraspPlanningSetup(ou.load_scene(SCENES / "panda_can.toml"))
+    plan = setup.solve(time_limit=5.0, planner="ikbirrt", seed=1)
+    return plan.save(tmp_path_factory.mktemp("physics") / "plan.json")
+
+
+@pytest.fixture(scope="module")
+def nominal(panda_plan):
+    """The Panda demo plan executed at the nominal object pose."""
+    return execute_plan(panda_plan)
+
+
+@pytest.mark.parametrize("scene", ["panda_can", "lwa3_sdh_can", "ur5_allegro_can"])
+def test_mujoco_palm_pose_is_pinocchio_forward_kinematics(scene):
+    """MuJoCo's palm link pose equals Pinocchio's FK at random configurations."""
+    problem = ou.load_scene(SCENES / f"{scene}.toml")
+    robot = problem.robot
+    world = build_world(_plan_dict(SCENES / f"{scene}.toml"))
+    data = mujoco.MjData(world.model)
+    pdata = robot.model.createData()
+    rng = np.random.default_rng(3)
+    low, high = robot.model.lowerPositionLimit, robot.model.upperPositionLimit
+    for _ in range(20):
+        q = rng.uniform(np.maximum(low, -3.0), np.minimum(high, 3.0))
+        data.qpos[world.qpos] = q[[robot.model.joints[robot.model.getJointId(n)].idx_q
+                                   for n in world.joint_names]]  # fmt: skip
+        mujoco.mj_kinematics(world.model, data)
+        expected = robot.palm_placement(pdata, q)
+        rotation = data.xmat[world.palm_body].reshape(3, 3)
+        assert np.linalg.norm(data.xpos[world.palm_body] - expected.translation) <= 5e-4
+        assert np.linalg.norm(pin.log3(expected.rotation.T @ rotation)) <= 1e-3
+
+
+def test_tracking_error_stays_under_the_bound(nominal):
+    """Along the Panda plan the arm tracks within ARM_TRACKING_BOUND, the hand within
+    HAND_TRACKING_BOUND, the lift within ARM_TRACKING_BOUND."""
+    assert nominal.tracking["reach_arm"] <= ARM_TRACKING_BOUND
+    assert nominal.tracking["reach_hand"] <= HAND_TRACKING_BOUND
+    assert nominal.tracking["lift_arm"] <= ARM_TRACKING_BOUND
+
+
+def test_nominal_panda_plan_lifts_its_can(nominal):
+    """At the nominal pose the can rises with the hand and stays put in it."""
+    assert nominal.success, nominal.verdict
+    assert nominal.cause is None
+    assert nominal.lift["object_mm"] >= 90
+    assert {c["with"] for c in nominal.final_contacts} == {"can"}
+    assert not nominal.obstacle_contacts
+    # Stiff contacts: the squeezing fingers sink less than 2 mm into the can.
+    assert nominal.penetration["robot_object_mm"] < 2.0
+
+
+def test_object_15_cm_away_is_not_lifted(panda_plan):
+    """With the can 15 cm away the hand closes on nothing and the trial fails."""
+    record = execute_plan(panda_plan, (0.15, 0.0, 0.0), frames=False)
+    assert not record.success
+    assert record.cause == "no contact"
+    assert record.lift["object_mm"] < 5
+    assert record.first_contact is None
+
+
+def test_same_inputs_give_the_same_execution_file(panda_plan, tmp_path):
+    """Two runs of one plan, offset and seed write identical execution.json files."""
+    texts = []
+    for name in ("a", "b"):
+        result = _cli("execute", str(panda_plan), "--object-offset", "0", "0.01", "0.1",
+                      "--seed", "4", "--out", str(tmp_path / name))  # fmt: skip
+        assert result.returncode in (0, 1), result.stderr
+        texts.append((tmp_path / name / "execution.json").read_bytes())
+    assert texts[0] == texts[1]
+    data = read_execution(tmp_path / "a" / "execution.json")
+    assert data["offset"] == {"dx": 0.0, "dy": 0.01, "yaw": 0.1}
+    assert data["seed"] == 4
+
+
+def test_execute_cli_exit_status_and_verdict(panda_plan, tmp_path):
+    """``execute`` prints one verdict line and exits 0 on a held grasp."""
+    result = _cli("execute", str(panda_plan), "--out", str(tmp_path))
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.startswith("held:")
+    assert len(result.stdout.splitlines()) == 1
+    assert json.loads((tmp_path / "execution.json").read_text())["success"] is True
+
+
+def _cli(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "openup_ompl", *args], capture_output=True, text=True, timeout=120
+    )
+
+
+def _bad_plans(panda_plan: Path, tmp: Path) -> dict[str, tuple[list[str], str]]:
+    data = json.loads(panda_plan.read_text())
+    no_urdf = tmp / "no_urdf.json"
+    no_urdf.write_text(json.dumps({**data, "robot": {**data["robot"], "urdf": "/no/such.urdf"}}))
+    old = tmp / "old.json"
+    old.write_text(json.dumps({**data, "format": "openup-plan/0"}))
+    return {
+        "missing URDF": ([str(no_urdf)], "/no/such.urdf"),
+        "not openup-plan/1": ([str(old)], "openup-plan/0"),
+        "NaN offset": ([str(panda_plan), "--object-offset", "nan", "0", "0"], "nan"),
+        "missing plan": ([str(tmp / "none.json")], "none.json"),
+    }
+
+
+@pytest.mark.parametrize(
+    "case", ["missing URDF", "not openup-plan/1", "NaN offset", "missing plan"]
+)
+def test_bad_input_exits_2_with_one_line_naming_it(panda_plan, tmp_path, case):
+    """Every bad input ends with exit status 2 and one stderr line naming the value."""
+    args, named = _bad_plans(panda_plan, tmp_path)[case]
+    result = _cli("execute", *args, "--out", str(tmp_path / "out"))
+    assert result.returncode == 2, result.stdout
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1, result.stderr
+    assert named in lines[0]
+    assert not (tmp_path / "out" / "execution.json").exists()
+
+
+def test_bad_offset_and_options_raise_config_errors(panda_plan):
+    """A non-finite offset or a negative gain is a ConfigError naming it."""
+    with pytest.raises(ConfigError, match="yaw"):
+        execute_plan(panda_plan, (0.0, 0.0, math.inf))
+    with pytest.raises(ConfigError, match="arm_kp"):
+        PhysicsOptions(arm_kp=-1.0)
+    with pytest.raises(ConfigError, match="speed"):
+        PhysicsOptions(speed=2.0)
+
+
+def test_timing_respects_the_velocity_limits():
+    """The timed path never moves a joint faster than speed x its limit, starts and ends
+    at the path's ends."""
+    rows = np.linspace([0.0, 0.0], [1.0, -0.5], 50)
+    limits = np.array([2.0, 0.5])
+    rows[20:] += np.linspace([0.0, 0.0], [0.3, 0.3], 30)  # a turn at row 20
+    timed = time_path(rows, limits, speed=0.5, acceleration=2.0)
+    times = np.linspace(0.0, timed.duration, 400)
+    q = np.array([timed.at(t) for t in times])
+    velocity = np.abs(np.diff(q, axis=0)) / np.diff(times)[:, None]
+    assert np.all(velocity <= 0.5 * limits * 1.001)
+    assert np.allclose(q[0], rows[0]) and np.allclose(q[-1], rows[-1])
+
+
+def test_rollout_frames_follow_the_phases(panda_plan):
+    """The kept frames cover every phase in order, with the object's pose per frame."""
+    record = Rollout(ou.read_plan(panda_plan)).run(frames=True)
+    assert record.frames is not None
+    phases = list(dict.fromkeys(record.frames["phase"]))
+    assert phases == ["settle", "reach", "close", "lift", "hold"]
+    assert len(record.frames["object"]) == len(record.frames["q"])
+
+
+def test_physics_sweep_adds_touched_and_moved_mm(tmp_path):
+    """``robustness --execute physics`` writes the kinematic columns plus touched and
+    moved_mm, and keeps each trial's execution record."""
+    result = _cli("robustness", "--execute", "physics", "--scene", str(SCENES / "panda_can.toml"),
+                  "--u", "0.3", "--delta", "0", "0.02", "--seeds", "1", "--workers", "1",
+                  "--quiet", "--out", str(tmp_path))  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    with (tmp_path / "robustness.csv").open() as handle:
+        rows = list(csv.DictReader(handle))
+    assert len(rows) == 5
+    assert list(rows[0])[:7] == ["u", "dx", "dy", "yaw", "trials", "successes", "success_rate"]
+    assert {"touched", "moved_mm"} <= set(rows[0])
+    trials = json.loads((tmp_path / "trials.json").read_text())[0]["trials"]
+    assert all("verdict" in t and "first_contact" in t for t in trials)
+
+
+@pytest.mark.parametrize("jacobian", ["mjJAC_DENSE", "mjJAC_SPARSE"])
+def test_accelerations_solve_the_dynamics_in_a_grasp(panda_plan, jacobian):
+    """MuJoCo issue 3767 (wrong accelerations from the sparse path): at the held grasp
+    (contacts, the mimic constraint) MuJoCo's qacc solves M qacc = qfrc_smooth +
+    qfrc_constraint, with the dense Jacobian we use and with the sparse one."""
+    rollout = Rollout(ou.read_plan(panda_plan))
+    rollout.run(frames=False)
+    model, data = rollout.world.model, rollout.sim
+    assert data.ncon > 0
+    model.opt.jacobian = getattr(mujoco.mjtJacobian, jacobian)
+    mujoco.mj_forward(model, data)
+    inertia = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, inertia)
+    expected = np.linalg.solve(inertia, data.qfrc_smooth + data.qfrc_constraint)
+    assert np.abs(data.qacc - expected).max() <= 1e-6 * max(1.0, np.abs(expected).max())
+
+
+def test_show_of_an_execution_writes_the_rollout_pictures(panda_plan, tmp_path):
+    """``show EXECUTION.json`` writes the rollout's HTML (the object keyed per frame) and
+    its storyboard; the page loads in headless Chromium without a script error."""
+    pytest.importorskip("matplotlib")
+    pytest.importorskip("meshcat")
+    executed = _cli("execute", str(panda_plan), "--object-offset", "0", "0.02", "0",
+                    "--out", str(tmp_path))  # fmt: skip
+    assert executed.returncode in (0, 1), executed.stderr
+    result = _cli("show", str(tmp_path / "execution.json"))
+    assert result.returncode == 0, result.stderr
+    page, board = tmp_path / "execution.html", tmp_path / "execution_storyboard.png"
+    assert page.stat().st_size > 10_000 and board.stat().st_size > 10_000
+    assert '"labels": ["settle' in page.read_text()
+    from test_viz import _headless
+
+    dom = _headless(page, tmp_path, "--dump-dom").stdout
+    assert 'data-state="ready"' in dom
+    assert "data-errors" not in dom
+
+
+def test_show_of_an_execution_without_frames_names_the_fault(panda_plan, tmp_path):
+    """An execution.json without its frames (a sweep's record) is refused in one line."""
+    record = execute_plan(panda_plan, frames=False)
+    path = tmp_path / "execution.json"
+    path.write_text(json.dumps(record.to_dict(frames=False)))
+    result = _cli("show", str(path))
+    assert result.returncode == 2
+    assert len(result.stderr.splitlines()) == 1 and "frames" in result.stderr
