@@ -325,7 +325,14 @@ def build_parser() -> argparse.ArgumentParser:
     loop = commands.add_parser(
         "closed-loop",
         help="perceive -> plan at the estimate with each policy's u -> execute against the"
-        " true pose (kinematic judge), over noise scales and camera distances",
+        " true pose (kinematically or in physics), over noise scales and camera distances",
+    )
+    loop.add_argument(
+        "--execute",
+        choices=("kinematic", "physics"),
+        default="kinematic",
+        help="how a plan is judged against the true pose: the kinematic re-check and force"
+        " closure, or a MuJoCo rollout that closes, lifts and holds (default: kinematic)",
     )
     loop.add_argument(
         "--scene", type=Path, default=None, help="scene TOML (default: scenes/lwa3_sdh_can.toml)"

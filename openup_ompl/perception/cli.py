@@ -79,6 +79,7 @@ def closed_loop_command(args: argparse.Namespace) -> int:
     from openup_ompl.perception.closed_loop import (
         ClosedLoopOptions,
         closed_loop,
+        kinematic_judge,
         summarize,
         write_csv,
     )
@@ -104,7 +105,12 @@ def closed_loop_command(args: argparse.Namespace) -> int:
         if not args.quiet:
             print(line, file=sys.stderr)
 
-    records = closed_loop(problem, options, progress=progress)
+    judge = kinematic_judge
+    if args.execute == "physics":
+        from openup_ompl.physics.sweep import physics_judge
+
+        judge = physics_judge
+    records = closed_loop(problem, options, judge=judge, progress=progress)
     rows = summarize(records)
     args.out.mkdir(parents=True, exist_ok=True)
     csv_path = write_csv(rows, args.out / "closed_loop.csv")
@@ -121,7 +127,10 @@ def closed_loop_command(args: argparse.Namespace) -> int:
     try:
         from openup_ompl.perception.figure import plot_closed_loop
 
-        title = f"closed loop, {problem.robot.name}: perceive, plan at the estimate, execute"
+        title = (
+            f"closed loop, {problem.robot.name}: perceive, plan at the estimate,"
+            f" execute ({args.execute})"
+        )
         print(f"plot written to {plot_closed_loop(rows, args.out / 'closed_loop.png', title)}")
     except MissingExtra as missing:
         print(f"no plot: {missing}", file=sys.stderr)

@@ -11,11 +11,16 @@ success, collision``; ``collision``: a robot link touched an obstacle in physics
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from openup_ompl.physics.options import PhysicsOptions
 
-__all__ = ["physics_run", "physics_trial"]
+if TYPE_CHECKING:
+    from openup_ompl.plan import Plan
+    from openup_ompl.planning import GraspPlanningSetup
+    from openup_ompl.scene import Problem
+
+__all__ = ["physics_judge", "physics_run", "physics_trial"]
 
 
 def physics_trial(record: dict[str, Any]) -> dict[str, Any]:
@@ -89,3 +94,27 @@ def physics_run(
                      "verdict": str(error)}  # fmt: skip
         record["trials"].append(trial)
     return record
+
+
+def physics_judge(setup: GraspPlanningSetup, plan: Plan, truth: Problem) -> dict[str, Any]:
+    """The closed loop's judge in physics (:func:`~openup_ompl.perception.closed_loop.
+    closed_loop`): the plan, made for the object where perception put it, executed in a
+    world whose object stands where it truly is (its full pose: the estimate's height and
+    tilt errors are not carried into the world, the object rests as it really does).
+
+    Returns:
+        The rollout's sweep trial (:func:`physics_trial`); a diverged simulation is a
+        failed trial with ``cause`` ``"diverged"``.
+    """
+    from openup_ompl.exceptions import SimulationDiverged
+    from openup_ompl.physics.rollout import Rollout
+
+    assert truth.object is not None
+    data = plan.to_dict()
+    data["scene"] = {**data["scene"], "object": dict(truth.object.raw)}
+    try:
+        record = Rollout(data).run((0.0, 0.0, 0.0), frames=False).to_dict(False)
+    except SimulationDiverged as error:
+        return {"success": False, "collision": False, "touched": False, "cause": "diverged",
+                "verdict": str(error)}  # fmt: skip
+    return physics_trial(record)
