@@ -270,3 +270,19 @@ def test_show_of_an_execution_without_frames_names_the_fault(panda_plan, tmp_pat
     result = _cli("show", str(path))
     assert result.returncode == 2
     assert len(result.stderr.splitlines()) == 1 and "frames" in result.stderr
+
+
+def test_physics_judge_executes_against_the_true_object():
+    """The closed loop's physics judge holds the can where the plan expects it and fails
+    when the truth is 15 cm away (the plan is the same; only the world's object moves)."""
+    from openup_ompl.physics.sweep import physics_judge
+    from openup_ompl.robustness import displaced
+
+    problem = ou.load_scene(SCENES / "panda_can.toml")
+    setup = ou.GraspPlanningSetup(problem)
+    plan = setup.solve(time_limit=5.0, planner="ikbirrt", seed=1)
+    held = physics_judge(setup, plan, problem)
+    assert held["success"], held["verdict"]
+    missed = physics_judge(setup, plan, displaced(problem, 0.15, 0.0))
+    assert not missed["success"]
+    assert missed["cause"] == "no contact"
