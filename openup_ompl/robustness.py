@@ -78,6 +78,7 @@ __all__ = [
     "make_tasks",
     "markdown_tables",
     "perturbations",
+    "plan_nominal",
     "plot_robustness",
     "robustness_run",
     "run_robustness",
@@ -283,6 +284,44 @@ def make_tasks(scene: str | Path, options: RobustnessOptions) -> list[Task]:
     return tasks
 
 
+def plan_nominal(
+    seed: int,
+    scene: str,
+    u: float,
+    planner: str,
+    time_limit: float,
+    perturbations: Sequence[Sequence[float]],
+    open_arrival: bool,
+    failed: dict[str, Any],
+) -> tuple[dict[str, Any], GraspPlanningSetup | None, Plan | None]:
+    """A sweep task's plan, made once at the nominal pose (shared by the kinematic and
+    the physics execution).
+
+    Returns:
+        The task's record (``u, seed, planned, error``; with ``solve_time, rows`` once
+        planned), the setup and the plan. A planning failure gives ``None`` for both and
+        fills the record's ``trials``: every perturbation failed, each with ``failed``'s
+        keys (the execution's own fields) besides ``dx, dy, yaw, success, collision``.
+    """
+    problem = check_scene(scene)
+    record: dict[str, Any] = {"u": u, "seed": seed, "planned": False, "error": None}
+    try:
+        options = PlanningOptions(
+            u=u, open_arrival=open_arrival, planner=planner, time_limit=time_limit, simplify=True
+        )
+        setup = GraspPlanningSetup(problem, options)
+        plan = setup.solve(seed=seed)
+    except (PlanningFailed, InvalidProblem) as error:
+        record["error"] = str(error)
+        record["trials"] = [
+            {"dx": c[0], "dy": c[1], "yaw": c[2], "success": False, "collision": False, **failed}
+            for c in perturbations
+        ]
+        return record, None, None
+    record.update(planned=True, solve_time=plan.solve_time_s, rows=int(plan.path.shape[0]))
+    return record, setup, plan
+
+
 def robustness_run(
     seed: int,
     scene: str,
@@ -302,32 +341,13 @@ def robustness_run(
         has ``dx, dy, yaw, collision, collision_row, pairs, force_closure, enclosed,
         contacts, fingers, success``.
     """
-    problem = check_scene(scene)
-    if torsion is None:
-        torsion = problem.robot.spec.torsion
-    record: dict[str, Any] = {"u": u, "seed": seed, "planned": False, "error": None}
-    try:
-        options = PlanningOptions(
-            u=u, open_arrival=open_arrival, planner=planner, time_limit=time_limit, simplify=True
-        )
-        setup = GraspPlanningSetup(problem, options)
-        plan = setup.solve(seed=seed)
-    except (PlanningFailed, InvalidProblem) as error:
-        record["error"] = str(error)
-        record["trials"] = [
-            {
-                "dx": c[0],
-                "dy": c[1],
-                "yaw": c[2],
-                "success": False,
-                "collision": False,
-                "force_closure": False,
-                "enclosed": False,
-            }  # fmt: skip
-            for c in perturbations
-        ]
+    record, setup, plan = plan_nominal(
+        seed, scene, u, planner, time_limit, perturbations, open_arrival,
+        failed={"force_closure": False, "enclosed": False},
+    )  # fmt: skip
+    if setup is None or plan is None:
         return record
-    record.update(planned=True, solve_time=plan.solve_time_s, rows=int(plan.path.shape[0]))
+    torsion = setup.problem.robot.spec.torsion if torsion is None else torsion
     record["trials"] = [
         execute(setup, plan, dx, dy, yaw, friction=friction, torsion=torsion)[0]
         for dx, dy, yaw in perturbations

@@ -36,6 +36,12 @@ def physics_trial(record: dict[str, Any]) -> dict[str, Any]:
     }
 
 
+def _diverged(error: Exception) -> dict[str, Any]:
+    """A trial without a verdict (the simulation diverged): failed, saying why."""
+    return {"success": False, "collision": False, "touched": False,
+            "moved_before_closing": None, "cause": "diverged", "verdict": str(error)}  # fmt: skip
+
+
 def physics_run(
     seed: int,
     scene: str,
@@ -53,34 +59,18 @@ def physics_run(
     Returns:
         ``{"u", "seed", "planned", "error", "solve_time", "rows", "physics", "trials"}``.
     """
-    from openup_ompl.exceptions import InvalidProblem, PlanningFailed, SimulationDiverged
+    from openup_ompl.exceptions import SimulationDiverged
     from openup_ompl.physics.rollout import Rollout
-    from openup_ompl.planning import GraspPlanningSetup
-    from openup_ompl.robustness import check_scene
+    from openup_ompl.robustness import plan_nominal
 
-    problem = check_scene(scene)
     options = PhysicsOptions()
-    record: dict[str, Any] = {"u": u, "seed": seed, "planned": False, "error": None}
-    record["physics"] = {k: v for k, v in options.__dict__.items()}
-    try:
-        setup = GraspPlanningSetup(problem, u=u, open_arrival=open_arrival)
-        plan = setup.solve(time_limit=time_limit, planner=planner, seed=seed, simplify=True)
-    except (PlanningFailed, InvalidProblem) as error:
-        record["error"] = str(error)
-        record["trials"] = [
-            {
-                "dx": c[0],
-                "dy": c[1],
-                "yaw": c[2],
-                "success": False,
-                "collision": False,
-                "touched": False,
-                "moved_before_closing": None,
-            }  # fmt: skip
-            for c in perturbations
-        ]
+    record, _, plan = plan_nominal(
+        seed, scene, u, planner, time_limit, perturbations, open_arrival,
+        failed={"touched": False, "moved_before_closing": None},
+    )  # fmt: skip
+    record["physics"] = dict(options.__dict__)
+    if plan is None:
         return record
-    record.update(planned=True, solve_time=plan.solve_time_s, rows=int(plan.path.shape[0]))
     rollout = Rollout(plan.to_dict(), options)
     record["trials"] = []
     for dx, dy, yaw in perturbations:
@@ -89,9 +79,7 @@ def physics_run(
                 rollout.run((dx, dy, yaw), seed=seed, frames=False).to_dict(False)
             )
         except SimulationDiverged as error:  # no verdict: a failed trial that says why
-            trial = {"dx": dx, "dy": dy, "yaw": yaw, "success": False, "collision": False,
-                     "touched": False, "moved_before_closing": None, "cause": "diverged",
-                     "verdict": str(error)}  # fmt: skip
+            trial = {"dx": dx, "dy": dy, "yaw": yaw, **_diverged(error)}
         record["trials"].append(trial)
     return record
 
@@ -115,6 +103,5 @@ def physics_judge(setup: GraspPlanningSetup, plan: Plan, truth: Problem) -> dict
     try:
         record = Rollout(data).run((0.0, 0.0, 0.0), frames=False).to_dict(False)
     except SimulationDiverged as error:
-        return {"success": False, "collision": False, "touched": False, "cause": "diverged",
-                "verdict": str(error)}  # fmt: skip
+        return _diverged(error)
     return physics_trial(record)
