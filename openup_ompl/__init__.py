@@ -42,7 +42,7 @@ from openup_ompl.planners import IKBiRRT, IKBiRRTOptions
 from openup_ompl.planning import PLANNERS, GraspPlanningSetup, PlanningOptions
 from openup_ompl.robot import Robot, available_robots, load_robot
 from openup_ompl.robustness import RobustnessOptions, RobustnessResult, run_robustness
-from openup_ompl.scene import Problem, Shape, default_scene_path, load_scene
+from openup_ompl.scene import Problem, Shape, default_scene_path, demo_scene_path, load_scene
 from openup_ompl.validity import (
     DEFAULT_RESOLUTION,
     CoupledChecker,
@@ -96,6 +96,7 @@ __all__ = [
     "available_robots",
     "close_hand",
     "default_scene_path",
+    "demo_scene_path",
     "enclosed",
     "force_closure",
     "load_robot",

@@ -144,8 +144,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--scene",
         type=Path,
         default=None,
-        help="scene TOML (default: scenes/panda_can.toml, the Panda, whose fingers open by"
-        " millimetres; scenes/lwa3_sdh_can.toml shows the paper's SDH hand opening widely)",
+        help="scene TOML (default: scenes/lwa3_sdh_can.toml, the paper's robot, whose SDH"
+        " hand opens by centimetres; scenes/panda_can.toml: the Panda's, by millimetres)",
     )
     demo.set_defaults(handler=_demo_command)
 
@@ -483,10 +483,10 @@ def _plan_command(args: argparse.Namespace) -> int:
 
 
 def _demo_command(args: argparse.Namespace) -> int:
-    from openup_ompl.scene import default_scene_path
+    from openup_ompl.scene import demo_scene_path
 
     _dir_out(args.out)
-    _, plan = _plan(args, args.scene or default_scene_path())
+    _, plan = _plan(args, args.scene or demo_scene_path())
     print(_summary(plan))
     out: Path = args.out
     path = plan.save(out / "plan.json")

@@ -147,8 +147,15 @@ class Problem:
 
 
 def default_scene_path() -> Path:
-    """The scene ``openup-ompl demo`` plans: the Panda reaching a can past an obstacle."""
+    """The Panda reaching a can past a wall: the scene of the README's examples."""
     return data_dir("scenes") / "panda_can.toml"
+
+
+def demo_scene_path() -> Path:
+    """The scene ``openup-ompl demo`` plans: the paper's robot (an LWA3-class arm with an
+    SDH-class hand) taking a can from the side, its fingers opening by centimetres (the
+    Panda's open by millimetres)."""
+    return data_dir("scenes") / "lwa3_sdh_can.toml"
 
 
 def load_scene(path: str | Path, robot: Robot | None = None) -> Problem:

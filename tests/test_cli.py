@@ -129,12 +129,16 @@ def test_same_seed_gives_the_same_rrtconnect_path(tmp_path):
 
 
 def test_demo_writes_its_plan(tmp_path):
-    """`demo --out DIR --seed 1` writes DIR/plan.json, a plan of the default scene."""
+    """`demo --out DIR --seed 1` writes DIR/plan.json, a plan of the demo scene (the
+    paper's robot)."""
+    from openup_ompl.scene import demo_scene_path
+
     result = run_cli("demo", "--out", "demo", "--seed", "1", cwd=tmp_path)
     assert result.returncode == 0, result.stderr
     data = json.loads((tmp_path / "demo" / "plan.json").read_text())
     assert data["format"] == "openup-plan/1"
-    assert data["grasp_pose"] == [0.6, 0.0, 0.19, 1.0, 0.0, 0.0, 0.0]
+    assert data["robot"]["name"] == "lwa3_sdh"
+    assert data["grasp_pose"] == ou.load_scene(demo_scene_path()).grasp_pose.tolist()
     assert len(data["path"]) >= 2
 
 
