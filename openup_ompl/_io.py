@@ -1,10 +1,15 @@
-"""Writing files so that a reader never sees a partial one."""
+"""Writing files so that a reader never sees a partial one, and reading the package's
+JSON formats back."""
 
 from __future__ import annotations
 
+import json
 import os
 import tempfile
 from pathlib import Path
+from typing import Any
+
+from openup_ompl.exceptions import ConfigError
 
 
 def write_atomic(path: str | Path, text: str) -> Path:
@@ -24,3 +29,21 @@ def write_atomic(path: str | Path, text: str) -> Path:
         Path(tmp).unlink(missing_ok=True)
         raise
     return path
+
+
+def read_json(path: str | Path, fmt: str, what: str) -> dict[str, Any]:
+    """The JSON object in ``path`` whose ``format`` is ``fmt`` (``what`` names the file in
+    errors, e.g. ``"plan file"``).
+
+    Raises:
+        ConfigError: Unreadable, not JSON, or another format (naming the one found).
+    """
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as error:
+        raise ConfigError(what, str(path), f"a readable JSON {what} ({error})") from None
+    if not isinstance(data, dict) or data.get("format") != fmt:
+        found = data.get("format") if isinstance(data, dict) else data
+        raise ConfigError(f"{path.name}: format", found, fmt)
+    return data

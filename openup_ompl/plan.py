@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from openup_ompl._io import write_atomic
+from openup_ompl._io import read_json, write_atomic
 from openup_ompl._model import frame_id
 from openup_ompl.exceptions import ConfigError, JointNotFound
 from openup_ompl.hand_law import HandLaw
@@ -109,16 +109,7 @@ class Plan:
 def read_plan(path: str | Path) -> dict[str, Any]:
     """Read a plan file and check its format and path shape."""
     path = Path(path)
-    try:
-        data = json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as error:
-        raise ConfigError("plan file", str(path), f"a readable JSON plan ({error})") from None
-    if not isinstance(data, dict) or data.get("format") != PLAN_FORMAT:
-        raise ConfigError(
-            f"{path.name}: format",
-            data.get("format") if isinstance(data, dict) else data,
-            PLAN_FORMAT,
-        )
+    data = read_json(path, PLAN_FORMAT, "plan file")
     rows = data.get("path")
     names = data.get("robot", {}).get("joint_names", [])
     if not (

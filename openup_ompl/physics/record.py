@@ -12,7 +12,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from openup_ompl.exceptions import ConfigError
+from openup_ompl._io import read_json, write_atomic
 
 __all__ = [
     "EXECUTION_FORMAT",
@@ -114,11 +114,8 @@ def _rounded(value: Any) -> Any:
 
 def write_execution(record: ExecutionRecord, out_dir: str | Path) -> Path:
     """Write ``out_dir/execution.json``; returns its path."""
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    path = out / "execution.json"
-    path.write_text(json.dumps(record.to_dict(), indent=1, allow_nan=False) + "\n")
-    return path
+    text = json.dumps(record.to_dict(), indent=1, allow_nan=False) + "\n"
+    return write_atomic(Path(out_dir) / "execution.json", text)
 
 
 def is_execution(path: str | Path) -> bool:
@@ -138,12 +135,4 @@ def read_execution(path: str | Path) -> dict[str, Any]:
     Raises:
         ConfigError: Not a readable execution file.
     """
-    path = Path(path)
-    try:
-        data = json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as error:
-        raise ConfigError("execution file", str(path), f"a readable JSON file ({error})") from None
-    if not isinstance(data, dict) or data.get("format") != EXECUTION_FORMAT:
-        found = data.get("format") if isinstance(data, dict) else data
-        raise ConfigError(f"{path.name}: format", found, EXECUTION_FORMAT)
-    return data
+    return read_json(path, EXECUTION_FORMAT, "execution file")
