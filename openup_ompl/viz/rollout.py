@@ -81,6 +81,7 @@ def write_rollout_storyboard(execution: dict[str, Any], out: str | Path, dpi: in
         _draw,
         _Robot,
         _triangles,
+        closeup_bounds,
     )
 
     plt = _pyplot()
@@ -136,10 +137,7 @@ def write_rollout_storyboard(execution: dict[str, Any], out: str | Path, dpi: in
         arm, hand = robot.meshes_at(q[k], fine=True)
         if not hand:
             continue
-        hand_points = np.concatenate([poses[k][None, :3], _triangles(hand).reshape(-1, 3)])
-        lo, hi = hand_points.min(axis=0), hand_points.max(axis=0)
-        middle, half = (lo + hi) / 2, float(np.max(hi - lo)) / 2 * 1.3
-        lo, hi = middle - half, middle + half
+        lo, hi = closeup_bounds(poses[k], hand, margin=1.3)
         close = fig.add_subplot(grid[1, column], projection="3d")
         layers = [
             *environment(k, lo, hi),

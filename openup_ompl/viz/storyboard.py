@@ -214,6 +214,20 @@ def _draw(
     ax.computed_zorder = False
 
 
+def closeup_bounds(
+    anchor: np.ndarray, hand: list[Mesh], margin: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The cube [m, world frame] a hand close-up draws: around ``anchor`` (a position, or a
+    pose whose first three values are one: the palm's origin, the object's centre) and the
+    hand's triangles, its side ``margin`` times their largest extent."""
+    points = np.concatenate(
+        [np.asarray(anchor, dtype=float)[None, :3], _triangles(hand).reshape(-1, 3)]
+    )
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    middle, half = (lo + hi) / 2, float(np.max(hi - lo)) / 2 * margin
+    return middle - half, middle + half
+
+
 def _environment(
     scene: PlanScene, low: np.ndarray, high: np.ndarray
 ) -> list[tuple[np.ndarray, tuple[float, ...]]]:
@@ -298,11 +312,7 @@ def write_storyboard(
         arm, hand = robot.meshes_at(q, fine=True)
         if not hand:
             continue
-        palm = scene.palm[row][None, :]
-        hand_points = np.concatenate([palm, _triangles(hand).reshape(-1, 3)])
-        lo, hi = hand_points.min(axis=0), hand_points.max(axis=0)
-        middle, half = (lo + hi) / 2, float(np.max(hi - lo)) / 2 * 1.5
-        lo, hi = middle - half, middle + half
+        lo, hi = closeup_bounds(scene.palm[row], hand, margin=1.5)
         close = fig.add_subplot(grid[1, column], projection="3d")
         layers = [
             *_environment(scene, lo, hi),
