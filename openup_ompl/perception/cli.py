@@ -12,42 +12,44 @@ from typing import Any
 import numpy as np
 
 from openup_ompl import _toml
-from openup_ompl.exceptions import ConfigError
+from openup_ompl.exceptions import ConfigError, MissingExtra
+from openup_ompl.perception.camera import CameraOptions
+from openup_ompl.scene import Problem, load_scene
 
-__all__ = ["camera_pairs", "perceive_command"]
+__all__ = ["camera_pairs", "closed_loop_command", "perceive_command", "scene_camera"]
 
 
 def camera_pairs(pairs: Sequence[str]) -> dict[str, Any]:
     """``KEY=VALUE`` pairs (each VALUE a TOML value, e.g. ``distance=0.9``,
     ``position=[1, 0, 0.8]``) as a ``[camera]`` table."""
-    from openup_ompl._toml import tomllib
-
     table: dict[str, Any] = {}
     for pair in pairs:
         key, sep, value = pair.partition("=")
         if not sep or not key.strip():
             raise ConfigError("--camera", pair, "KEY=VALUE, e.g. distance=0.9")
         try:
-            table[key.strip()] = tomllib.loads(f"v = {value}")["v"]
-        except tomllib.TOMLDecodeError:
+            table[key.strip()] = _toml.tomllib.loads(f"v = {value}")["v"]
+        except _toml.tomllib.TOMLDecodeError:
             raise ConfigError(f"--camera {key.strip()}", value, "a TOML value") from None
     return table
 
 
-def perceive_command(args: argparse.Namespace) -> int:
-    from openup_ompl.exceptions import MissingExtra
-    from openup_ompl.perception.camera import CameraOptions
-    from openup_ompl.perception.noise import NoiseOptions
-    from openup_ompl.perception.perceive import perceive, write_perception
-    from openup_ompl.scene import load_scene
-
-    problem = load_scene(args.scene)
+def scene_camera(problem: Problem, pairs: Sequence[str]) -> CameraOptions:
+    """The camera of a scene file's ``[camera]`` table, overridden by ``--camera``
+    ``KEY=VALUE`` pairs."""
     assert problem.path is not None
-    raw = _toml.read_toml(problem.path, "scene file")
-    table = raw.get("camera", {})
+    table = _toml.read_toml(problem.path, "scene file").get("camera", {})
     if not isinstance(table, dict):
         raise ConfigError(f"{problem.path.name}: camera", table, "a [camera] table")
-    camera = CameraOptions.from_table({**table, **camera_pairs(args.camera or [])})
+    return CameraOptions.from_table({**table, **camera_pairs(pairs)})
+
+
+def perceive_command(args: argparse.Namespace) -> int:
+    from openup_ompl.perception.noise import NoiseOptions
+    from openup_ompl.perception.perceive import perceive, write_perception
+
+    problem = load_scene(args.scene)
+    camera = scene_camera(problem, args.camera or [])
     noise = replace(NoiseOptions(), scale=args.noise)
     perception = perceive(problem, camera, noise, rng=np.random.default_rng(args.seed))
     paths = write_perception(problem, perception, args.out)
@@ -75,7 +77,6 @@ def perceive_command(args: argparse.Namespace) -> int:
 def closed_loop_command(args: argparse.Namespace) -> int:
     import json
 
-    from openup_ompl.perception.camera import CameraOptions
     from openup_ompl.perception.closed_loop import (
         ClosedLoopOptions,
         closed_loop,
@@ -86,12 +87,8 @@ def closed_loop_command(args: argparse.Namespace) -> int:
     from openup_ompl.robustness import check_scene, default_robustness_scene
 
     problem = check_scene(args.scene or default_robustness_scene())
-    assert problem.path is not None
-    table = _toml.read_toml(problem.path, "scene file").get("camera", {})
-    if not isinstance(table, dict):
-        raise ConfigError(f"{problem.path.name}: camera", table, "a [camera] table")
     options = ClosedLoopOptions(
-        camera=CameraOptions.from_table({**table, **camera_pairs(args.camera or [])}),
+        camera=scene_camera(problem, args.camera or []),
         policies=tuple(args.policies),
         noises=tuple(args.noise),
         distances=tuple(args.distance),
@@ -122,7 +119,6 @@ def closed_loop_command(args: argparse.Namespace) -> int:
             f" {row['successes']}/{row['trials']} (mean u {row['mean_u']:.3f})"
         )
     print(f"table written to {csv_path}; every trial in {trials}")
-    from openup_ompl.exceptions import MissingExtra
 
     try:
         from openup_ompl.perception.figure import plot_closed_loop
