@@ -32,9 +32,9 @@ from openup_ompl.urdf import (
     _merged_srdf,
     _merged_urdf,
     _resolve_chains,
-    _urdf_mimic,
-    _urdf_tree,
     cache_dir,
+    urdf_mimic,
+    urdf_tree,
 )
 
 #: Also importable from here (their old home): the file format, the cache, frame lookup.
@@ -311,7 +311,7 @@ def load_robot(name_or_path: str | Path = "panda") -> Robot:
         if spec.srdf is not None:
             pin.removeCollisionPairs(model, collision, str(spec.srdf))
     mimic = _resolve_chains(
-        _urdf_mimic(_urdf_tree(urdf, f"{spec.path.name}: urdf")), spec.hand_joints
+        urdf_mimic(urdf_tree(urdf, f"{spec.path.name}: urdf")), spec.hand_joints
     )
     return Robot(
         spec=spec,

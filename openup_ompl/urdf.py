@@ -37,14 +37,14 @@ def _write_cached(text: str, stem: str, suffix: str) -> Path:
     return path
 
 
-def _urdf_tree(path: Path, where: str) -> ET.Element:
+def urdf_tree(path: Path, where: str) -> ET.Element:
     try:
         return ET.parse(path).getroot()
     except (OSError, ET.ParseError) as error:
         raise ConfigError(where, str(path), f"a readable URDF ({error})") from None
 
 
-def _urdf_mimic(root: ET.Element) -> tuple[MimicSpec, ...]:
+def urdf_mimic(root: ET.Element) -> tuple[MimicSpec, ...]:
     """The ``<mimic>`` tags of a URDF, as follower specs."""
     specs = []
     for joint in root.iter("joint"):
@@ -76,7 +76,7 @@ def _resolve_chains(mimic: tuple[MimicSpec, ...], driven: tuple[str, ...]) -> tu
     return tuple(resolved)
 
 
-def _absolute_meshes(root: ET.Element, urdf: Path, package_dirs: list[str]) -> None:
+def absolute_meshes(root: ET.Element, urdf: Path, package_dirs: list[str]) -> None:
     """Rewrite ``package://`` and relative mesh file names as absolute paths."""
     for mesh in root.iter("mesh"):
         name = mesh.get("filename", "")
@@ -125,20 +125,20 @@ def _merged_urdf(
         The merged URDF, the hand URDF to load, the hand SRDF to apply.
     """
     where = f"{spec.path.name}: mount"
-    arm = _urdf_tree(spec.urdf, f"{spec.path.name}: urdf")
-    hand = _urdf_tree(mount.urdf, f"{where}.urdf")
+    arm = urdf_tree(spec.urdf, f"{spec.path.name}: urdf")
+    hand = urdf_tree(mount.urdf, f"{where}.urdf")
     _prefix_names(hand, mount.prefix)
     hand_urdf, hand_srdf = mount.urdf, mount.srdf
     if mount.prefix:
         hand_abs = ET.fromstring(ET.tostring(hand))
-        _absolute_meshes(hand_abs, mount.urdf, [*package_dirs, str(mount.urdf.parent)])
+        absolute_meshes(hand_abs, mount.urdf, [*package_dirs, str(mount.urdf.parent)])
         hand_urdf = _write_cached(ET.tostring(hand_abs, encoding="unicode"), "hand", ".urdf")
         if mount.srdf is not None:
-            srdf = _urdf_tree(mount.srdf, f"{where}.srdf")
+            srdf = urdf_tree(mount.srdf, f"{where}.srdf")
             _prefix_names(srdf, mount.prefix)
             hand_srdf = _write_cached(ET.tostring(srdf, encoding="unicode"), "hand", ".srdf")
-    _absolute_meshes(arm, spec.urdf, package_dirs)
-    _absolute_meshes(hand, mount.urdf, [*package_dirs, str(mount.urdf.parent)])
+    absolute_meshes(arm, spec.urdf, package_dirs)
+    absolute_meshes(hand, mount.urdf, [*package_dirs, str(mount.urdf.parent)])
     arm_names = {e.get("name") for e in arm if e.tag in ("link", "joint")}
     clash = sorted(
         str(e.get("name"))
@@ -208,7 +208,7 @@ def _merged_srdf(
     merged = ET.Element("robot", {"name": spec.name})
     for srdf, where in ((spec.srdf, "srdf"), (hand_srdf, "mount.srdf")):
         if srdf is not None:
-            root = _urdf_tree(srdf, f"{spec.path.name}: {where}")
+            root = urdf_tree(srdf, f"{spec.path.name}: {where}")
             merged.extend(root.iter("disable_collisions"))
     for a, b in pairs:
         ET.SubElement(merged, "disable_collisions", {"link1": a, "link2": b, "reason": "Never"})

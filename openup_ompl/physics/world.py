@@ -33,6 +33,7 @@ from openup_ompl.exceptions import ConfigError
 from openup_ompl.physics.options import PhysicsOptions
 from openup_ompl.physics.shapes import add_scene
 from openup_ompl.scene import Shape
+from openup_ompl.urdf import absolute_meshes, urdf_mimic, urdf_tree
 
 if TYPE_CHECKING:
     import mujoco
@@ -58,13 +59,11 @@ def urdf_spec(urdf: str | Path, package_dirs: list[str]) -> tuple[mujoco.MjSpec,
     """
     import mujoco
 
-    from openup_ompl.urdf import _absolute_meshes, _urdf_tree
-
     path = Path(urdf)
     if not path.is_file():
         raise ConfigError("plan robot.urdf", str(path), "an existing URDF file")
-    root = _urdf_tree(path, "plan robot.urdf")
-    _absolute_meshes(root, path, list(package_dirs))
+    root = urdf_tree(path, "plan robot.urdf")
+    absolute_meshes(root, path, list(package_dirs))
     for old in root.findall("mujoco"):
         root.remove(old)
     extension = ET.SubElement(root, "mujoco")
@@ -167,8 +166,6 @@ def build_world(data: dict[str, Any], options: PhysicsOptions | None = None) -> 
             malformed scene.
     """
     import mujoco
-
-    from openup_ompl.urdf import _urdf_mimic
 
     options = options or PhysicsOptions()
     robot = data.get("robot") or {}
@@ -274,7 +271,7 @@ def build_world(data: dict[str, Any], options: PhysicsOptions | None = None) -> 
         links.append(name)
     mimic = [
         (index[m.joint], index[m.leader], m.multiplier, m.offset)
-        for m in _urdf_mimic(root)
+        for m in urdf_mimic(root)
         if m.joint in index and m.leader in index
     ]
     limited = model.jnt_limited[jid].astype(bool)
