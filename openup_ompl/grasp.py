@@ -161,7 +161,14 @@ def closed_configuration(problem: Problem) -> np.ndarray:
     lower, upper = (x[robot.hand_idx[:n]] for x in limits)
     if robot.spec.closed is not None:
         return np.clip(robot.spec.closed, lower, upper)
-    c, w = problem.hand_law.c[:n], problem.hand_law.w[:n]
+    return closing_limits(problem.hand_law.c[:n], problem.hand_law.w[:n], lower, upper)
+
+
+def closing_limits(
+    c: np.ndarray, w: np.ndarray, lower: np.ndarray, upper: np.ndarray
+) -> np.ndarray:
+    """Each hand joint's limit on ``c``'s side of ``w`` (where it closes to when the robot
+    file gives no ``[hand].closed``); NaN for a joint with ``c == w``, which does not close."""
     return np.where(c < w, lower, np.where(c > w, upper, np.nan))
 
 

@@ -31,7 +31,8 @@ from typing import Any
 
 import numpy as np
 
-from openup_ompl.exceptions import ConfigError, SimulationDiverged
+from openup_ompl.exceptions import ConfigError, OpenUpError, SimulationDiverged
+from openup_ompl.grasp import closing_limits
 from openup_ompl.physics.options import PhysicsOptions
 from openup_ompl.physics.record import ExecutionRecord
 from openup_ompl.physics.trajectory import time_path
@@ -69,13 +70,14 @@ def closed_targets(data: dict[str, Any], world: World) -> tuple[np.ndarray, np.n
     low, high = world.lower[hand], world.upper[hand]
     if c.shape != (hand.size,) or w.shape != (hand.size,):
         raise ConfigError("plan hand_law c/w", law.get("c"), f"{hand.size} hand joint values")
-    closed = np.where(c < w, low, np.where(c > w, high, c))
+    closed = closing_limits(c, w, low, high)
+    closed = np.where(np.isnan(closed), c, closed)  # a joint with c == w holds c
     speed = np.ones(hand.size)
     source = "c/w"
     robot = data.get("robot") or {}
     try:
         spec = RobotSpec.from_file(find_robot_file(str(robot.get("name"))))
-    except Exception:  # a robot this package does not know: c/w it is
+    except OpenUpError:  # a robot this package does not know: c/w it is
         spec = None
     names = list(robot.get("hand_joints") or [])
     if spec is not None and list(spec.hand_joints) == names[: len(spec.hand_joints)]:
