@@ -128,3 +128,30 @@ def write_json(path: str | None, payload: dict[str, Any]) -> None:
     target = Path(path)
     target.parent.mkdir(parents=True, exist_ok=True)
     target.write_text(json.dumps(clean(payload), indent=1, allow_nan=False) + "\n")
+
+
+def recheck_plans(plans: Sequence[Any]) -> tuple[int, int]:
+    """Re-check plans (``openup_ompl.Plan``) with the independent ``tests/recheck.py``:
+    each is saved, reloaded from its file and checked for start, grasp pose, hand law and
+    collision. Returns ``(checked, passed)``."""
+    import sys
+    import tempfile
+
+    tests = str(Path(__file__).resolve().parent.parent / "tests")
+    if tests not in sys.path:
+        sys.path.insert(0, tests)
+    from recheck import recheck_plan
+
+    passed = 0
+    with tempfile.TemporaryDirectory() as directory:
+        for index, plan in enumerate(plans):
+            data = json.loads(plan.save(Path(directory) / f"plan{index}.json").read_text())
+            result = recheck_plan(data)
+            passed += (
+                result.start_error < 1e-9
+                and not result.colliding
+                and result.position_error <= 1e-3
+                and result.rotation_error <= 1e-2
+                and result.hand_error < 1e-9
+            )
+    return len(plans), int(passed)
