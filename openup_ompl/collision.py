@@ -27,6 +27,8 @@ from openup_ompl.scene import Problem, Shape
 # through the dynamic AABB tree pool, the only pool Pinocchio binds.
 _Manager: Any = pin.BroadPhaseManager_NaiveCollisionManager
 _ManagerPool: Any = pin.BroadPhaseManagerPool_DynamicAABBTreeCollisionManager
+#: Smallest batch sent to the thread pool (see :meth:`CollisionWorld.batch_in_collision`).
+PARALLEL_MIN_STATES = 32
 
 
 def _without_warm_start(geometry_data: pin.GeometryData) -> pin.GeometryData:
@@ -129,19 +131,26 @@ class CollisionWorld:
         return bool(pin.computeCollisions(self.model, context.data, context.manager, q, True))
 
     def batch_in_collision(self, qs: np.ndarray, stop_at_first: bool = True) -> np.ndarray:
-        """Collision flags for the columns of ``qs`` (shape ``(nq, N)``), in parallel.
+        """Collision flags for the columns of ``qs`` (shape ``(nq, N)``).
 
         With ``stop_at_first`` the batch stops at the first colliding configuration: the
-        flags are then only meaningful as "some configuration collides". On one thread
-        the columns are checked one by one in this thread (the parallel pool measured
-        slower there).
+        flags are then only meaningful as "some configuration collides". Batches of at
+        least :data:`PARALLEL_MIN_STATES` go to Pinocchio's thread pool; smaller ones, and
+        every batch of a one-thread world, are checked one by one in this thread: waking
+        the pool's sleeping threads costs about 100 us per call, the price of 15-20
+        single checks (``benchmarks/bench_speed.py``).
         """
-        if self.num_threads == 1:
-            flags = np.zeros(qs.shape[1], dtype=bool)
-            for i in range(qs.shape[1]):
-                flags[i] = self.in_collision(qs[:, i])
-                if flags[i] and stop_at_first:
-                    break
+        n = qs.shape[1]
+        if self.num_threads == 1 or n < PARALLEL_MIN_STATES:
+            flags = np.zeros(n, dtype=bool)
+            context = self.context()
+            model, data, manager = self.model, context.data, context.manager
+            collides = pin.computeCollisions
+            for i in range(n):
+                if collides(model, data, manager, qs[:, i], True):
+                    flags[i] = True
+                    if stop_at_first:
+                        break
             return flags
         with self._pool_lock:
             if self._pool is None:

@@ -33,11 +33,15 @@ ANCHOR_STRIDE = 8
 #: collision-free down to a clearance of ``padding / 2**REFINE_LEVELS`` (0.375 mm by
 #: default), and motions through thinner margins are cut finer to stay exact.
 REFINE_LEVELS = 3
-#: Doublings of the padding tried first: a motion is first checked at states
-#: ``2**COARSE_LEVELS`` times farther apart against obstacles padded ``2**COARSE_LEVELS``
-#: times more (24 mm apart, 12 mm of padding by default), which is as exact and settles a
-#: motion far from every obstacle with a quarter of the states.
-COARSE_LEVELS = 2
+#: Doublings of the padding tried first: a motion's first states are ``2**COARSE_LEVELS``
+#: times farther apart than the resolution, checked against obstacles padded
+#: ``2**COARSE_LEVELS`` times more (48 mm apart, 24 mm of padding by default), which is as
+#: exact and settles a motion far from every obstacle with an eighth of the states; the
+#: margins between are used where the robot passes closer (see
+#: :meth:`CoupledChecker.check_motion`).
+COARSE_LEVELS = 3
+#: Accepted motions remembered by :attr:`CoupledChecker.certified` at most.
+CERTIFIED_MAX = 200_000
 
 
 class CoupledChecker:
@@ -63,6 +67,9 @@ class CoupledChecker:
         coarse_resolution: Spacing [m] of the coarse pass's states.
         states_checked: States checked so far (single and batched).
         motions_checked: Motions checked so far.
+        certified: Motions :meth:`check_motion` accepted, as ``(a, b)`` byte keys, so that
+            a path made of them need not be checked again (:meth:`is_certified`); kept up
+            to :data:`CERTIFIED_MAX` motions, then restarted.
         motion_weights: Weights ``W`` [m per joint unit] of the displacement bound
             (:mod:`~openup_ompl.motion_bound`), the fingers' motion under the law included.
         plateau_weights: The same with the hand still, for motions that stay on the law's
@@ -102,6 +109,7 @@ class CoupledChecker:
             for level, pad in enumerate(self.paddings)
         ]
         self.finest_world = self._worlds[-1]
+        self._pads = np.asarray(self.paddings)
         self.coarse_resolution = self.resolution * 2.0**self._coarse
         self._model = self.robot.model
         self._palm = self.robot.palm_frame_id
@@ -125,6 +133,7 @@ class CoupledChecker:
         self.distance_rates = distance_rates(self.robot, self.law, start_distance)
         self.states_checked = 0
         self.motions_checked = 0
+        self.certified: set[bytes] = set()
 
     # -- single states ----------------------------------------------------------------
     def normalized_distance(self, arm: np.ndarray) -> float:
@@ -248,24 +257,6 @@ class CoupledChecker:
 
     full_qs = coupled_qs  # the old name
 
-    def _motion_qs(
-        self,
-        a: np.ndarray,
-        b: np.ndarray,
-        spacing: float,
-        weights: np.ndarray,
-        ends: tuple[float, float],
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """The states of the motion ``a -> b`` at ``spacing`` [m] in the bound of
-        ``weights`` (:meth:`interpolate`), ``a`` included, and their full configurations:
-        ``(n, dof)`` and ``(nq, n)``. ``ends`` are ``d(a)`` and ``d(b)``."""
-        arms = np.concatenate([a[None, :], self.interpolate(a, b, spacing, weights)])
-        qs = self._arm_qs(arms)
-        n = arms.shape[0]
-        step = float(self.distance_rates @ np.abs(b - a)) / (n - 1)
-        self._set_hands(qs, step * np.arange(n), ends)
-        return arms, qs
-
     def _set_hands(
         self, qs: np.ndarray, path: np.ndarray, ends: tuple[float, float] | None = None
     ) -> None:
@@ -343,100 +334,123 @@ class CoupledChecker:
     def check_motion(self, a: np.ndarray, b: np.ndarray) -> bool:
         """Whether the straight arm motion ``a -> b`` is collision-free with the coupled hand.
 
-        ``b`` is checked first. Then the coarse pass: states :attr:`coarse_resolution`
-        apart, in one parallel batch against the widest padding, settle a motion far from
-        every obstacle (all free), or one through an obstacle (a state collides even with
-        the finest margin). Otherwise ``a``, the intermediate states at :attr:`resolution`
-        and ``b`` go to the base padding in one batch: every state keeps that margin
-        (free), or one collides with the finest (not free), or some keep only a thinner
-        margin and the intervals next to them are cut finer until each is covered
-        (:meth:`_certify`). On one thread the batches loop over their states
+        ``b`` is checked first (the finest margin). Then states of the motion are placed
+        where they are needed, each with the widest of the margins :attr:`paddings` it
+        keeps: a point of the robot that moves no more than ``m_i + m_j`` between two
+        checked states of margins ``m_i`` and ``m_j`` stays within one margin of one of
+        them, so the interval between them is collision-free. The first round places
+        states :attr:`coarse_resolution` apart against the widest margin: a motion far
+        from every obstacle is settled by them. Each further round cuts the intervals
+        still uncovered at the spacing their thinner end's margin covers, and checks the
+        new states from that margin on; a state that collides even with the finest margin
+        refuses the motion. Each round's states of one margin go to Coal in one batch
         (:meth:`~openup_ompl.collision.CollisionWorld.batch_in_collision`).
         """
         self.motions_checked += 1
         free, db = self._check_state(b)
         if not free:
             return False
-        ends = (
-            (math.inf, math.inf)
-            if self.law.fixed is not None
-            else (self.normalized_distance(a), db)
-        )
+        fixed = self.law.fixed is not None
+        ends = (math.inf, math.inf) if fixed else (self.normalized_distance(a), db)
         weights = self.weights(a, b, ends)
-        if self._coarse:
-            arms, qs = self._motion_qs(a, b, self.coarse_resolution, weights, ends)
-            self.states_checked += arms.shape[0]
-            if not np.any(self._worlds[0].batch_in_collision(qs)):
-                return self._certify(
-                    arms, np.zeros(arms.shape[0], dtype=int), weights, self.coarse_resolution
-                )
-            if np.any(self.finest_world.batch_in_collision(qs)):
-                return False
-        base = self._coarse
-        arms, qs = self._motion_qs(a, b, self.resolution, weights, ends)
-        self.states_checked += arms.shape[0]
-        if not np.any(self._worlds[base].batch_in_collision(qs)):
-            return self._certify(arms, np.full(arms.shape[0], base), weights, self.resolution)
-        if np.any(self.finest_world.batch_in_collision(qs)):
-            return False
-        flags = self._worlds[base].batch_in_collision(qs, stop_at_first=False)
-        levels = np.full(arms.shape[0], base)
-        for i in np.flatnonzero(flags):
-            level = self._level(qs[:, i], base + 1)
-            if level is None:
-                return False
-            levels[i] = level
-        return self._certify(arms, levels, weights)
-
-    def _level(self, q: np.ndarray, first: int = 0) -> int | None:
-        """Index of the widest margin, from level ``first`` on, at which ``q`` is
-        collision-free, or ``None``."""
-        for level in range(first, len(self._worlds)):
-            if not self._worlds[level].in_collision(q):
-                return level
-        return None
-
-    def _certify(
-        self,
-        arms: np.ndarray,
-        levels: np.ndarray,
-        weights: np.ndarray,
-        spacing: float | None = None,
-    ) -> bool:
-        """Whether the polyline through ``arms`` is collision-free, given each state's
-        margin level, in the displacement bound of ``weights``.
-
-        An interval is covered when no robot point moves more than twice the thinner of
-        its two end margins along it: every point then stays within one margin of a
-        checked position. Uncovered intervals are split at their middle, the new state
-        checked, until covered or a state collides even with the finest margin. Given
-        ``spacing``, the most any point moves along one interval (known when ``arms``
-        were interpolated at it), the intervals are covered at once if it is at most
-        twice the thinnest margin.
-        """
-        pads = np.asarray(self.paddings)
+        delta = b - a
+        reach = float(np.abs(delta) @ weights)  # no robot point moves farther [m]
+        pads = self._pads
         if pads[-1] <= 0.0:  # no padding: plain resolution checks, no guarantee
-            return True
-        if spacing is not None and spacing <= 2 * pads[int(np.max(levels))]:
-            return True
-        reach = np.abs(np.diff(arms, axis=0)) @ weights
-        margin = pads[np.maximum(levels[:-1], levels[1:])]
-        stack = [
-            (arms[i], int(levels[i]), arms[i + 1], int(levels[i + 1]))
-            for i in np.flatnonzero(reach > 2 * margin)
-        ]
-        while stack:
-            start, start_level, end, end_level = stack.pop()
-            if float(np.abs(end - start) @ weights) <= 2 * pads[max(start_level, end_level)]:
-                continue
-            middle = 0.5 * (start + end)
-            self.states_checked += 1
-            level = self._level(self.coupled_q(middle), min(start_level, end_level))
-            if level is None:
+            n = max(1, math.ceil(reach / self.resolution))
+            qs = self._states(a, delta, np.arange(n + 1) / n, ends)
+            self.states_checked += n + 1
+            return not np.any(self.finest_world.batch_in_collision(qs))
+        n = max(1, math.ceil(reach / (2.0 * pads[0])))
+        t = np.arange(n + 1) / n
+        levels = self._margins(self._states(a, delta, t, ends), np.zeros(n + 1, dtype=np.intp))
+        if levels is None:
+            return False
+        while True:
+            margin = pads[levels]
+            gap = np.diff(t) * reach
+            open_ = np.flatnonzero(gap > (margin[:-1] + margin[1:]) * (1.0 - 1e-12))
+            if open_.size == 0:
+                self._certified(a, b)
+                return True
+            # Cut each uncovered interval at the spacing its thinner end's margin covers.
+            thinner = np.maximum(levels[open_], levels[open_ + 1])
+            pieces = np.maximum(np.ceil(gap[open_] / (2.0 * pads[thinner]) - 1e-9), 2)
+            pieces = pieces.astype(np.intp)
+            owner = np.repeat(np.arange(open_.size), pieces - 1)
+            first = np.cumsum(pieces - 1) - (pieces - 1)
+            rank = np.arange(owner.size) - first[owner] + 1
+            new_t = t[open_][owner] + rank * (np.diff(t)[open_] / pieces)[owner]
+            new_levels = self._margins(self._states(a, delta, new_t, ends), thinner[owner])
+            if new_levels is None:
                 return False
-            stack.append((start, start_level, middle, level))
-            stack.append((middle, level, end, end_level))
-        return True
+            order = np.argsort(np.concatenate([t, new_t]), kind="stable")
+            t = np.concatenate([t, new_t])[order]
+            levels = np.concatenate([levels, new_levels])[order]
+
+    def _certified(self, a: np.ndarray, b: np.ndarray) -> None:
+        if len(self.certified) >= CERTIFIED_MAX:
+            self.certified.clear()
+        self.certified.add(a.tobytes() + b.tobytes())
+
+    def is_certified(self, a: np.ndarray, b: np.ndarray) -> bool:
+        """Whether :meth:`check_motion` accepted the motion ``a -> b`` or ``b -> a`` (the
+        same bit-exact arm configurations) since :attr:`certified` last restarted."""
+        a = np.ascontiguousarray(a, dtype=float)
+        b = np.ascontiguousarray(b, dtype=float)
+        keys = self.certified
+        return a.tobytes() + b.tobytes() in keys or b.tobytes() + a.tobytes() in keys
+
+    def _states(
+        self, a: np.ndarray, delta: np.ndarray, t: np.ndarray, ends: tuple[float, float]
+    ) -> np.ndarray:
+        """Full configurations ``(nq, len(t))`` at ``a + t * delta`` (``t`` in [0, 1]), the
+        hand from the law; ``ends`` are ``d`` at ``t = 0`` and ``t = 1``."""
+        qs = self._arm_qs(a + t[:, None] * delta)
+        if self.law.fixed_clipped is not None:
+            qs[self._hand_sel, :] = self.law.fixed_clipped[:, None]
+            return qs
+        # d is Lipschitz along the motion: |d(t) - d(s)| <= |t - s| * span.
+        span = float(self.distance_rates @ np.abs(delta))
+        bound = np.maximum(ends[0] - t * span, ends[1] - (1.0 - t) * span)
+        need = np.flatnonzero(bound <= self.law.mga)
+        if need.size:
+            d = np.full(t.size, self.law.mga + 1.0)
+            data = self.world.context().data
+            distance = self._palm_distance
+            for k in need.tolist():
+                d[k] = distance(data, qs[:, k])
+            qs[self._hand_sel, :] = self.law.batch(d).T
+        else:
+            qs[self._hand_sel, :] = self.law.high[:, None]
+        return qs
+
+    def _margins(self, qs: np.ndarray, first: np.ndarray) -> np.ndarray | None:
+        """For each column of ``qs``, the index of the widest margin, from ``first`` on
+        (per column), at which it is collision-free; ``None`` if one collides even with the
+        finest margin (tried at once for the states that lose their ``first`` margin, so
+        that a colliding motion costs little)."""
+        self.states_checked += qs.shape[1]
+        levels = first.copy()
+        finest = len(self._worlds) - 1
+        pending = np.arange(qs.shape[1])
+        tried_finest = False
+        while pending.size:
+            level = int(levels[pending].min())
+            batch = pending[levels[pending] == level]
+            flags = self._worlds[level].batch_in_collision(
+                np.asfortranarray(qs[:, batch]), stop_at_first=False
+            )
+            hit = batch[flags]
+            if hit.size and level == finest:
+                return None
+            if hit.size and not tried_finest:
+                tried_finest = True
+                if np.any(self.finest_world.batch_in_collision(np.asfortranarray(qs[:, hit]))):
+                    return None
+            levels[hit] += 1
+            pending = pending[levels[pending] != level]
+        return levels
 
 
 def _selector(indices: np.ndarray) -> slice | np.ndarray:

@@ -15,7 +15,7 @@ import openup_ompl as oo
 from openup_ompl._resources import data_dir
 from openup_ompl.collision import CollisionWorld
 from openup_ompl.motion_bound import hand_rate
-from openup_ompl.validity import CoupledChecker
+from openup_ompl.validity import COARSE_LEVELS, CoupledChecker
 
 ompl_util.setLogLevel(ompl_util.LOG_ERROR)
 
@@ -109,7 +109,9 @@ def test_batched_hands_are_the_laws(robot_setup: oo.GraspPlanningSetup) -> None:
         b = a + rng.normal(0.0, 0.02 if k % 3 == 0 else 0.4, a.size)
         b = np.clip(b, robot.arm_lower, robot.arm_upper)
         ends = (checker.normalized_distance(a), checker.normalized_distance(b))
-        arms, qs = checker._motion_qs(a, b, checker.resolution, checker.motion_weights, ends)
+        t = np.arange(checker.segment_count(a, b) + 1) / checker.segment_count(a, b)
+        arms = a + t[:, None] * (b - a)
+        qs = checker._states(a, b - a, t, ends)
         path = np.concatenate([arms, [a], arms[::3]])
         for batch, states in ((qs, arms), (checker.coupled_qs(path), path)):
             expected = np.array([checker.coupled_q(x) for x in states]).T
@@ -185,7 +187,7 @@ def test_coarse_pass_gives_the_fine_verdicts_with_fewer_states(
     problem, law = setup.problem, setup.law
     fine = CoupledChecker(problem, law, coarse_levels=0)
     coarse = setup.checker
-    assert coarse.coarse_resolution == 4 * fine.coarse_resolution
+    assert coarse.coarse_resolution == 2**COARSE_LEVELS * fine.coarse_resolution
     arms = _valid_arms(setup, 80, seed=5)
     verdicts, fewer = [], 0
     for a, b in zip(arms[::2], arms[1::2], strict=True):
