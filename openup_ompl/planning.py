@@ -373,6 +373,7 @@ class GraspPlanningSetup:
                 iterations=instance.iterations,
                 goal_roots=instance.goal_roots,
                 retreat_vertices=instance.retreat_vertices,
+                lazy_cuts=instance.lazy_cuts,
                 start_tree=instance.start_tree_size,
                 goal_tree=instance.goal_tree_size,
             )

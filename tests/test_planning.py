@@ -278,3 +278,71 @@ def test_verify_has_its_own_error(default_setup: oo.GraspPlanningSetup) -> None:
         default_setup.verify(plan.path[1:])
     assert isinstance(caught.value, oo.PlanningFailed)
     assert "0.0 s" not in str(caught.value)
+
+
+def test_lazy_trees_return_checked_motions_only(tmp_path: Path) -> None:
+    """IKBiRRT's lazy trees (edges checked only on a path between the trees) return paths
+    whose every motion the checker certified, and which re-check independently; in the
+    cage, lazy edges on such paths are found colliding and cut, and the lazy planner
+    checks fewer motions than the eager one (``lazy=False``, every step as it is grown)."""
+    problem = oo.load_scene(default_problems_dir("panda") / "cage.toml")
+    setup = oo.GraspPlanningSetup(problem)
+    checker = setup.checker
+    motions = {True: 0, False: 0}
+    cuts = 0
+    for lazy in (True, False):
+        for seed in range(4):
+            planner = oo.IKBiRRT(setup.space_information, oo.IKBiRRTOptions(lazy=lazy))
+            plan = setup.solve(10.0, planner, seed=seed)
+            assert_plan_rechecks(plan, tmp_path / f"lazy{lazy}_{seed}.json")
+            waypoints = plan.waypoints
+            assert all(checker.is_certified(a, b) for a, b in zip(waypoints[:-1], waypoints[1:]))
+            assert plan.stats["verified_rows"] == waypoints.shape[0]
+            motions[lazy] += plan.stats["motion_checks"]
+            cuts += planner.lazy_cuts if lazy else 0
+            if not lazy:
+                assert planner.lazy_cuts == 0
+    assert cuts >= 1
+    assert motions[True] < motions[False]
+
+
+def test_cut_off_removes_what_grew_beyond_the_edge() -> None:
+    """Cutting a vertex removes it and its descendants, nothing else, and the nearest
+    vertex is then found among the living."""
+    from openup_ompl.planners.ikbirrt import _Tree
+
+    tree = _Tree(1, capacity=2)  # grows past its capacity
+    root = tree.add(np.array([0.0]), -1)
+    a = tree.add(np.array([1.0]), root, checked=False)
+    b = tree.add(np.array([2.0]), a, checked=False)
+    c = tree.add(np.array([-1.0]), root, checked=False)
+    d = tree.add(np.array([3.0]), b, checked=False)
+    tree.cut_off(a)
+    assert tree.dead[: tree.size].tolist() == [False, True, True, False, True]
+    assert tree.cut == 3
+    assert tree.nearest(np.array([2.9])) == root
+    assert tree.nearest(np.array([-0.9])) == c
+    assert tree.branch(c) == [root, c] and d == 4
+
+
+def test_final_check_skips_certified_motions_only(default_setup: oo.GraspPlanningSetup) -> None:
+    """The plan's final check leaves out the rows inside certified motions; a waypoint
+    moved by a hair is no longer certified, and a colliding row of an uncertified motion is
+    still caught."""
+    plan = default_setup.solve(planner="ikbirrt", seed=3)
+    checker = default_setup.checker
+    w = plan.waypoints
+    assert plan.stats["verified_rows"] < plan.path.shape[0]
+    assert checker.is_certified(w[0], w[1]) and checker.is_certified(w[1], w[0])
+    assert not checker.is_certified(w[0], w[1] + 1e-12)
+    default_setup.verify(plan.path, np.arange(plan.path.shape[0]))
+    robot = default_setup.problem.robot
+    rng = np.random.default_rng(0)
+    arm = rng.uniform(robot.arm_lower, robot.arm_upper)
+    while checker.is_valid(arm):
+        arm = rng.uniform(robot.arm_lower, robot.arm_upper)
+    path = plan.path.copy()
+    path[1] = checker.coupled_q(arm)
+    default_setup.verify(path, np.array([0, 2]))  # row 1 left out: passes
+    with pytest.raises(oo.VerifyFailed, match="row 1 collides"):
+        default_setup.verify(path, np.array([0, 1]))

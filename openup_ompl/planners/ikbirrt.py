@@ -15,6 +15,15 @@ first collision. Near the grasp the law's hand is close to ``c``, millimetres fr
 object, so a random extension from a root almost always drives a finger into the object;
 the retreat is the one motion that leaves it (the classical pregrasp-and-approach), and
 the goal tree then grows from its end. ``retreat = 0`` gives the plain IKBiRRT.
+
+With ``lazy`` (the default) the trees grow with their vertices checked and their edges
+not: a step is added when the state it reaches is collision-free. When the trees meet, the
+edges of the path through them are checked (the full motion check, as the eager planner
+checks every step), and an edge that collides is cut from its tree with everything grown
+beyond it before the trees grow on. Most edges of the trees never lie on a path; checking
+them is most of an eager planner's work. The returned path is made of checked motions
+only, exactly as without ``lazy``; ``lazy = False`` checks every step as it is grown
+(Algorithm 2 as the paper states it). Retreat steps are always checked as they are grown.
 """
 
 from __future__ import annotations
@@ -45,6 +54,8 @@ class IKBiRRTOptions:
             (0: none).
         retreat_step: Palm displacement [m] of one retreat step (one goal-tree vertex).
         seed: Seed of the planner's random generator (``None``: fresh entropy).
+        lazy: Check the trees' edges only when they lie on a path between the trees (see
+            the module docstring); ``False`` checks every step as it is grown.
     """
 
     max_step: float = 0.3  # [rad]
@@ -53,6 +64,7 @@ class IKBiRRTOptions:
     retreat: float = 0.1  # [m]
     retreat_step: float = 0.025  # [m]
     seed: int | None = None
+    lazy: bool = True
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.max_step) and self.max_step > 0):
@@ -69,6 +81,8 @@ class IKBiRRTOptions:
             raise ConfigError(
                 "IKBiRRTOptions.retreat_step", self.retreat_step, "a positive distance [m]"
             )
+        if not isinstance(self.lazy, bool):
+            raise ConfigError("IKBiRRTOptions.lazy", self.lazy, "true or false")
 
 
 class _Extend(Enum):
@@ -78,33 +92,55 @@ class _Extend(Enum):
 
 
 class _Tree:
-    """Vertices in one array (numpy nearest neighbour), each with its parent index."""
+    """Vertices in one array (numpy nearest neighbour), each with its parent index, whether
+    the edge from its parent is checked, and whether it was cut off (a lazy edge on its
+    way from the root collided)."""
 
     def __init__(self, dof: int, capacity: int = 1024) -> None:
         self.nodes = np.empty((capacity, dof))
         self.parents = np.empty(capacity, dtype=np.intp)
+        self.checked = np.empty(capacity, dtype=bool)
+        self.dead = np.empty(capacity, dtype=bool)
         self.size = 0
+        self.cut = 0
 
-    def add(self, q: np.ndarray, parent: int) -> int:
+    def add(self, q: np.ndarray, parent: int, checked: bool = True) -> int:
         if self.size == self.nodes.shape[0]:
             self.nodes = np.concatenate([self.nodes, np.empty_like(self.nodes)])
             self.parents = np.concatenate([self.parents, np.empty_like(self.parents)])
+            self.checked = np.concatenate([self.checked, np.empty_like(self.checked)])
+            self.dead = np.concatenate([self.dead, np.empty_like(self.dead)])
         self.nodes[self.size] = q
         self.parents[self.size] = parent
+        self.checked[self.size] = checked
+        self.dead[self.size] = False
         self.size += 1
         return self.size - 1
 
     def nearest(self, q: np.ndarray) -> int:
         diff = self.nodes[: self.size] - q
-        return int(np.argmin(np.einsum("ij,ij->i", diff, diff)))
+        distance = np.einsum("ij,ij->i", diff, diff)
+        if self.cut:
+            distance[self.dead[: self.size]] = np.inf
+        return int(np.argmin(distance))
 
-    def branch(self, index: int) -> list[np.ndarray]:
-        """Vertices from the root to ``index``."""
+    def branch(self, index: int) -> list[int]:
+        """Vertex indices from the root to ``index``."""
         out = []
         while index >= 0:
-            out.append(self.nodes[index].copy())
+            out.append(index)
             index = int(self.parents[index])
         return out[::-1]
+
+    def cut_off(self, index: int) -> None:
+        """Cut vertex ``index`` and everything grown beyond it out of the tree (children
+        always come after their parents)."""
+        dead, parents = self.dead, self.parents
+        dead[index] = True
+        for i in range(index + 1, self.size):
+            if not dead[i] and parents[i] >= 0 and dead[parents[i]]:
+                dead[i] = True
+        self.cut = int(np.sum(dead[: self.size]))
 
 
 class IKBiRRT(ob.Planner):
@@ -126,6 +162,9 @@ class IKBiRRT(ob.Planner):
         iterations: Iterations of the last solve.
         goal_roots: Goal-tree roots of the last solve.
         retreat_vertices: Goal-tree vertices of the last solve grown by retreats.
+        lazy_cuts: Lazy edges of the last solve found colliding on a path between the
+            trees (each cut from its tree).
+        cut_vertices: Vertices of the last solve cut off with them.
     """
 
     def __init__(
@@ -141,6 +180,8 @@ class IKBiRRT(ob.Planner):
         self.iterations = 0
         self.goal_roots = 0
         self.retreat_vertices = 0
+        self.lazy_cuts = 0
+        self.cut_vertices = 0
         self.start_tree_size = 0
         self.goal_tree_size = 0
 
@@ -153,6 +194,8 @@ class IKBiRRT(ob.Planner):
         self.iterations = 0
         self.goal_roots = 0
         self.retreat_vertices = 0
+        self.lazy_cuts = 0
+        self.cut_vertices = 0
 
     def setup(self) -> None:
         super().setup()
@@ -204,18 +247,39 @@ class IKBiRRT(ob.Planner):
             if result is not _Extend.TRAPPED:
                 result, met = self._extend(checker, other, grow.nodes[new], ptc)
                 if result is _Extend.REACHED:
-                    if grow is start_tree:
-                        path = start_tree.branch(new) + goal_tree.branch(met)[::-1][1:]
-                    else:
-                        path = start_tree.branch(met) + goal_tree.branch(new)[::-1][1:]
-                    self._add_solution(pdef, path)
-                    status = ob.PlannerStatus(ob.PlannerStatus.EXACT_SOLUTION)
-                    break
+                    ends = (new, met) if grow is start_tree else (met, new)
+                    path = self._connect(checker, start_tree, goal_tree, *ends)
+                    if path is not None:
+                        self._add_solution(pdef, path)
+                        status = ob.PlannerStatus(ob.PlannerStatus.EXACT_SOLUTION)
+                        break
             trees = (other, grow)
         self.goal_roots = int(np.sum(goal_tree.parents[: goal_tree.size] < 0))
         self.start_tree_size = start_tree.size
         self.goal_tree_size = goal_tree.size
+        self.cut_vertices = start_tree.cut + goal_tree.cut
         return status
+
+    def _connect(
+        self, checker: object, start_tree: _Tree, goal_tree: _Tree, start: int, goal: int
+    ) -> list[np.ndarray] | None:
+        """The path from the start tree's root through its vertex ``start`` (the same state
+        as the goal tree's ``goal``) to the goal tree's root, once every edge on it is
+        checked; ``None`` if one collides (that edge and what grew beyond it are cut)."""
+        branches = ((start_tree, start_tree.branch(start)), (goal_tree, goal_tree.branch(goal)))
+        for tree, branch in branches:
+            for parent, child in zip(branch[:-1], branch[1:], strict=True):
+                if tree.checked[child]:
+                    continue
+                if not checker.check_motion(tree.nodes[parent], tree.nodes[child]):  # type: ignore[attr-defined]
+                    tree.cut_off(child)
+                    self.lazy_cuts += 1
+                    return None
+                tree.checked[child] = True
+        (_, to_start), (_, to_goal) = branches
+        return [start_tree.nodes[i].copy() for i in to_start] + [
+            goal_tree.nodes[i].copy() for i in to_goal[::-1][1:]
+        ]
 
     def _retreat(self, goal: GraspGoal, tree: _Tree, root: int) -> None:
         """Grow the straight palm retreat from the goal root ``root`` (see the module
@@ -246,14 +310,17 @@ class IKBiRRT(ob.Planner):
         q = tree.nodes[index].copy()
         advanced = False
         step = self.options.max_step
+        lazy = self.options.lazy
         while True:
             delta = target - q
             distance = math.sqrt(float(delta @ delta))
             reached = distance <= step
             nxt = target.copy() if reached else q + delta * (step / distance)
-            if not checker.check_motion(q, nxt):  # type: ignore[attr-defined]
+            # Lazy: the state now, the edge when it lies on a path (see _connect).
+            free = checker.is_valid(nxt) if lazy else checker.check_motion(q, nxt)  # type: ignore[attr-defined]
+            if not free:
                 return (_Extend.ADVANCED if advanced else _Extend.TRAPPED), index
-            index = tree.add(nxt, index)
+            index = tree.add(nxt, index, checked=not lazy)
             advanced = True
             if reached:
                 return _Extend.REACHED, index
