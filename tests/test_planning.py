@@ -296,7 +296,10 @@ def test_lazy_trees_return_checked_motions_only(tmp_path: Path) -> None:
             plan = setup.solve(10.0, planner, seed=seed)
             assert_plan_rechecks(plan, tmp_path / f"lazy{lazy}_{seed}.json")
             waypoints = plan.waypoints
-            assert all(checker.is_certified(a, b) for a, b in zip(waypoints[:-1], waypoints[1:]))
+            assert all(
+                checker.is_certified(a, b)
+                for a, b in zip(waypoints[:-1], waypoints[1:], strict=True)
+            )
             assert plan.stats["verified_rows"] == waypoints.shape[0]
             motions[lazy] += plan.stats["motion_checks"]
             cuts += planner.lazy_cuts if lazy else 0
