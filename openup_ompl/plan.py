@@ -103,7 +103,21 @@ class Plan:
         path = Path(path)
         if not np.all(np.isfinite(self.path)):
             raise ConfigError("plan path", "non-finite values", "a finite path")
-        return write_atomic(path, json.dumps(self.to_dict(), indent=1, allow_nan=False))
+        return write_atomic(path, _plan_json(self.to_dict()))
+
+
+def _plan_json(data: dict[str, Any]) -> str:
+    """The plan file's text: indented, with one line per row of ``path`` and ``waypoints``
+    (written by the C encoder: the indented encoder is pure Python and took 0.1 s for a
+    plan of 2400 rows, a third of ``openup-ompl plan``'s own work)."""
+    rows = {key: data[key] for key in ("path", "waypoints")}
+    marks = {key: f"@@{key}@@" for key in rows}
+    text = json.dumps({**data, **marks}, indent=1, allow_nan=False)
+    for key, value in rows.items():
+        # Rows of numbers only: "], [" occurs between rows and nowhere else.
+        lines = json.dumps(value, allow_nan=False)[1:-1].replace("], [", "],\n  [")
+        text = text.replace(json.dumps(marks[key]), f"[\n  {lines}\n ]", 1)
+    return text
 
 
 def read_plan(path: str | Path) -> dict[str, Any]:
