@@ -438,9 +438,8 @@ class CoupledChecker:
         while pending.size:
             level = int(levels[pending].min())
             batch = pending[levels[pending] == level]
-            flags = self._worlds[level].batch_in_collision(
-                np.asfortranarray(qs[:, batch]), stop_at_first=False
-            )
+            states = qs if batch.size == qs.shape[1] else np.asfortranarray(qs[:, batch])
+            flags = self._worlds[level].batch_in_collision(states, stop_at_first=False)
             hit = batch[flags]
             if hit.size and level == finest:
                 return None
