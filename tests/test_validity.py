@@ -235,3 +235,21 @@ def test_grasp_tighter_than_the_padding_is_planned(tmp_path: Path) -> None:
     result = recheck_plan(json.loads(plan.save(tmp_path / "plan.json").read_text()))
     assert result.colliding == []
     assert result.position_error <= 1e-3
+
+
+def test_pool_and_thread_batches_agree(setup: oo.GraspPlanningSetup) -> None:
+    """Batches of PARALLEL_MIN_STATES and more (Pinocchio's pool) and smaller ones (one by
+    one in this thread) give each state's own verdict, colliding states included."""
+    from openup_ompl.collision import PARALLEL_MIN_STATES
+
+    world = setup.checker.finest_world
+    robot = setup.problem.robot
+    rng = np.random.default_rng(11)
+    arms = rng.uniform(robot.arm_lower, robot.arm_upper, (3 * PARALLEL_MIN_STATES, 7))
+    qs = np.asfortranarray(np.stack([setup.checker.coupled_q(a) for a in arms]).T)
+    expected = np.array([world.in_collision(qs[:, i]) for i in range(qs.shape[1])])
+    assert 0 < expected.sum() < expected.size
+    for size in (1, PARALLEL_MIN_STATES - 1, PARALLEL_MIN_STATES, qs.shape[1]):
+        flags = world.batch_in_collision(qs[:, :size], stop_at_first=False)
+        assert flags.tolist() == expected[:size].tolist()
+        assert bool(np.any(world.batch_in_collision(qs[:, :size]))) == bool(expected[:size].any())
