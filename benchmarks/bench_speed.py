@@ -35,6 +35,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from ompl import util as ou
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -178,6 +179,33 @@ def time_command(scene: Path, runs: int) -> dict[str, float]:
     return {"plan_s": _common.median(plan_times), "import_s": _common.median(import_times)}
 
 
+def prefilter_floor(robot: str, states: int = 2000) -> dict[str, float]:
+    """What a link-sphere prefilter in Python would pay per state at the least [us]:
+    Pinocchio's forward kinematics and reading every joint's placement (the spheres'
+    centres need them), against the exact check it would spare (``in_collision``: forward
+    kinematics, Coal's broadphase and narrow phase), on the same states of a suite
+    problem's plans."""
+    import pinocchio as pin
+
+    setup = oo.GraspPlanningSetup(oo.load_scene(default_problems_dir(robot) / "table_pick.toml"))
+    qs = np.concatenate([setup.solve(seed=seed).path for seed in range(1, 4)])[:states]
+    model = setup.problem.robot.model
+    data = model.createData()
+    joints = range(1, model.njoints)
+    world = setup.checker.finest_world
+    begun = time.perf_counter()
+    for q in qs:
+        pin.forwardKinematics(model, data, q)
+        placements = [data.oMi[j].homogeneous for j in joints]
+    fk = (time.perf_counter() - begun) / len(qs) * 1e6
+    begun = time.perf_counter()
+    for q in qs:
+        world.in_collision(q)
+    exact = (time.perf_counter() - begun) / len(qs) * 1e6
+    del placements
+    return {"fk_and_placements_us": fk, "exact_check_us": exact}
+
+
 def _target(value: float, limit: float) -> str:
     return f"{value:.3g} ({'met' if value <= limit else 'not met'}, target ≤ {limit:g})"
 
@@ -206,6 +234,7 @@ def main() -> None:
     runs, kept = run_suites(args.robots, args.planners, args.seeds, args.time, args.recheck_every)
     summary = summarize(runs, args.robots, args.planners)
     checked, passed = _common.recheck_plans(kept)
+    floors = {robot: prefilter_floor(robot) for robot in args.robots}
     commands = {
         robot: time_command(sorted(data_dir("scenes").glob(f"{robot}_*.toml"))[0], args.cli_runs)
         for robot in args.robots
@@ -298,6 +327,12 @@ def main() -> None:
             f"{timing['plan_s']:.2f} s median of {args.cli_runs} (of which "
             f"`import openup_ompl` alone {timing['import_s']:.2f} s)"
         )
+    for robot, floor in floors.items():
+        print(
+            f"- prefilter floor, {robot}: forward kinematics + every joint placement "
+            f"{floor['fk_and_placements_us']:.1f} us/state against the exact check "
+            f"{floor['exact_check_us']:.1f} us/state it would spare"
+        )
     print(f"recheck: {passed}/{checked} plans pass tests/recheck.py")
     _common.write_json(
         args.json,
@@ -311,6 +346,7 @@ def main() -> None:
             ],
             "prices": [{"robot": k[0], "planner": k[1], **v} for k, v in summary["prices"].items()],
             "commands": commands,
+            "prefilter_floor": floors,
             "recheck": {"checked": checked, "passed": passed},
         },
     )
