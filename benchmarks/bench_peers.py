@@ -572,8 +572,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
         variants.remove("pyroboplan")
 
-    ou.RNG.setSeed(args.ompl_seed)
     ou.setLogLevel(ou.LOG_ERROR)
+    ou.RNG.setSeed(args.ompl_seed)
     info = _common.machine_info()
     if "pyroboplan" in variants:
         info["versions"]["pyroboplan"] = version
