@@ -80,6 +80,7 @@ import _common  # noqa: E402
 import openup_ompl  # noqa: E402
 from openup_ompl.benchmark import default_problems_dir, find_problems, problem_id  # noqa: E402
 from openup_ompl.collision import CollisionWorld  # noqa: E402
+from openup_ompl.planning import arm_state_space  # noqa: E402
 from openup_ompl.validity import DEFAULT_RESOLUTION  # noqa: E402
 
 #: Variants in their first-round order.
@@ -198,12 +199,7 @@ def reference_setup(peers: Peers, planner_range: float) -> tuple[og.SimpleSetup,
     assert not isinstance(fixed, str) and peers.world is not None
     robot = fixed.problem.robot
     dof = robot.arm_idx.size
-    space = ob.RealVectorStateSpace(dof)
-    bounds = ob.RealVectorBounds(dof)
-    for i, (low, high) in enumerate(zip(robot.arm_lower, robot.arm_upper, strict=True)):
-        bounds.setLow(i, float(low))
-        bounds.setHigh(i, float(high))
-    space.setBounds(bounds)
+    space = arm_state_space(robot)
     ss = og.SimpleSetup(space)
     si = ss.getSpaceInformation()
     checker = ReferenceChecker(si, peers.world, peers.q_start, robot.arm_idx)

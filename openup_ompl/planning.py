@@ -25,6 +25,7 @@ from openup_ompl.hand_law import HandLaw
 from openup_ompl.ik import IKOptions, IKSolver
 from openup_ompl.plan import Plan
 from openup_ompl.planners.ikbirrt import IKBiRRT, IKBiRRTOptions
+from openup_ompl.robot import Robot
 from openup_ompl.scene import Problem
 from openup_ompl.validity import (
     DEFAULT_RESOLUTION,
@@ -79,6 +80,18 @@ def check_planner(name: str) -> str:
         why = f" ({_UNSUPPORTED[key]})" if key in _UNSUPPORTED else ""
         raise ConfigError("planner", name, f"one of {list(PLANNERS)}{why}")
     return str(key)
+
+
+def arm_state_space(robot: Robot) -> ob.RealVectorStateSpace:
+    """OMPL's state space of a robot's arm joints, bounded by their limits."""
+    dof = robot.arm_idx.size
+    space = ob.RealVectorStateSpace(dof)
+    bounds = ob.RealVectorBounds(dof)
+    for i, (low, high) in enumerate(zip(robot.arm_lower, robot.arm_upper, strict=True)):
+        bounds.setLow(i, float(low))
+        bounds.setHigh(i, float(high))
+    space.setBounds(bounds)
+    return space
 
 
 def check_time_limit(time_limit: float, where: str = "time_limit") -> float:
@@ -238,12 +251,7 @@ class GraspPlanningSetup:
         self.ikbirrt_options = options.ikbirrt_options or IKBiRRTOptions()
         resolution = options.resolution
         dof = robot.arm_idx.size
-        space = ob.RealVectorStateSpace(dof)
-        bounds = ob.RealVectorBounds(dof)
-        for i, (low, high) in enumerate(zip(robot.arm_lower, robot.arm_upper, strict=True)):
-            bounds.setLow(i, float(low))
-            bounds.setHigh(i, float(high))
-        space.setBounds(bounds)
+        space = arm_state_space(robot)
         self.space = space
         self.simple_setup = og.SimpleSetup(space)
         si = self.simple_setup.getSpaceInformation()
