@@ -406,24 +406,13 @@ class CoupledChecker:
     ) -> np.ndarray:
         """Full configurations ``(nq, len(t))`` at ``a + t * delta`` (``t`` in [0, 1]), the
         hand from the law; ``ends`` are ``d`` at ``t = 0`` and ``t = 1``."""
-        qs = self._arm_qs(a + t[:, None] * delta)
-        if self.law.fixed_clipped is not None:
-            qs[self._hand_sel, :] = self.law.fixed_clipped[:, None]
-            return qs
-        # d is Lipschitz along the motion: |d(t) - d(s)| <= |t - s| * span.
-        span = float(self.distance_rates @ np.abs(delta))
-        bound = np.maximum(ends[0] - t * span, ends[1] - (1.0 - t) * span)
-        need = np.flatnonzero(bound <= self.law.mga)
-        if need.size:
-            d = np.full(t.size, self.law.mga + 1.0)
-            data = self.world.context().data
-            distance = self._palm_distance
-            for k in need.tolist():
-                d[k] = distance(data, qs[:, k])
-            qs[self._hand_sel, :] = self.law.batch(d).T
-        else:
-            qs[self._hand_sel, :] = self.law.high[:, None]
-        return qs
+        # The hands of _set_hands, which bounds d from the motion's two ends: bracket the
+        # states with them where t does not hold them.
+        bracket = not (t[0] == 0.0 and t[-1] == 1.0)
+        at = np.concatenate([[0.0], t, [1.0]]) if bracket else t
+        qs = self._arm_qs(a + at[:, None] * delta)
+        self._set_hands(qs, at * float(self.distance_rates @ np.abs(delta)), ends)
+        return qs[:, 1:-1] if bracket else qs
 
     def _margins(self, qs: np.ndarray, first: np.ndarray) -> np.ndarray | None:
         """For each column of ``qs``, the index of the widest margin, from ``first`` on
