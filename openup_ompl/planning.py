@@ -394,9 +394,8 @@ class GraspPlanningSetup:
                 for a, b in zip(waypoints[:-1], waypoints[1:], strict=True)
             ]
         )
-        waypoint_row = np.r_[True, segment[1:] != segment[:-1]]  # the start, each motion's end
-        waypoint_row[:-1] = waypoint_row[1:]
-        waypoint_row[0] = waypoint_row[-1] = True
+        waypoint_row = np.r_[segment[1:] != segment[:-1], True]  # each motion's last row
+        waypoint_row[0] = True  # the start
         rows = np.flatnonzero(waypoint_row | ~certified[segment])
         stats["verified_rows"] = int(rows.size)
         self.verify(path, rows)
