@@ -60,11 +60,17 @@ _LAZY = {
 }
 
 
+#: Submodules that ``import openup_ompl`` no longer imports itself, still reachable as
+#: ``openup_ompl.robustness`` after the package alone was imported (as before).
+_LAZY_MODULES = {"robustness"}
+
+
 def __getattr__(name: str) -> object:
-    if name in _LAZY:
+    if name in _LAZY or name in _LAZY_MODULES:
         import importlib
 
-        value = getattr(importlib.import_module(_LAZY[name]), name)
+        module = importlib.import_module(_LAZY.get(name, f"openup_ompl.{name}"))
+        value = module if name in _LAZY_MODULES else getattr(module, name)
         globals()[name] = value
         return value
     raise AttributeError(f"module 'openup_ompl' has no attribute {name!r}")

@@ -16,6 +16,14 @@ object, so a random extension from a root almost always drives a finger into the
 the retreat is the one motion that leaves it (the classical pregrasp-and-approach), and
 the goal tree then grows from its end. ``retreat = 0`` gives the plain IKBiRRT.
 
+With ``aim_new_roots`` (the default), the first growth after a new goal root aims the
+start tree at that root's retreat end instead of at a uniform sample, and the goal tree
+then extends toward what the start tree reached, as after any growth. On an open scene
+this straight reach to the pregrasp is the whole plan; where it is blocked the trees grow
+on from wherever it stopped. Without it the first plan of an open scene runs through a
+uniform sample of the joint space, on average more than twice as long (Panda suite, 10
+seeds: 9.9 against 4.0 rad of joint motion, 1.7x the state checks).
+
 With ``lazy`` (the default) the trees grow with their vertices checked and their edges
 not: a step is added when the state it reaches is collision-free. When the trees meet, the
 edges of the path through them are checked (the full motion check, as the eager planner
@@ -56,6 +64,8 @@ class IKBiRRTOptions:
         seed: Seed of the planner's random generator (``None``: fresh entropy).
         lazy: Check the trees' edges only when they lie on a path between the trees (see
             the module docstring); ``False`` checks every step as it is grown.
+        aim_new_roots: Aim the first growth after each new goal root at its retreat end
+            (see the module docstring); ``False`` grows toward uniform samples only.
     """
 
     max_step: float = 0.3  # [rad]
@@ -65,6 +75,7 @@ class IKBiRRTOptions:
     retreat_step: float = 0.025  # [m]
     seed: int | None = None
     lazy: bool = True
+    aim_new_roots: bool = True
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.max_step) and self.max_step > 0):
@@ -81,8 +92,9 @@ class IKBiRRTOptions:
             raise ConfigError(
                 "IKBiRRTOptions.retreat_step", self.retreat_step, "a positive distance [m]"
             )
-        if not isinstance(self.lazy, bool):
-            raise ConfigError("IKBiRRTOptions.lazy", self.lazy, "true or false")
+        for name in ("lazy", "aim_new_roots"):
+            if not isinstance(getattr(self, name), bool):
+                raise ConfigError(f"IKBiRRTOptions.{name}", getattr(self, name), "true or false")
 
 
 class _Extend(Enum):
@@ -223,12 +235,13 @@ class IKBiRRT(ob.Planner):
             return ob.PlannerStatus(ob.PlannerStatus.INVALID_START)
 
         # At least one goal root before growing: a fresh IK sample, else one found earlier.
+        approach = None  # the newest root's retreat end, not yet aimed at
         while goal_tree.size == 0 and not ptc():
             root = goal.sample(max_restarts=self.options.goal_restarts)
             if root is None and goal.solutions:
                 root = goal.solutions[int(self._rng.integers(len(goal.solutions)))]
             if root is not None:
-                self._retreat(goal, goal_tree, goal_tree.add(root, -1))
+                approach = self._retreat(goal, goal_tree, goal_tree.add(root, -1))
         if goal_tree.size == 0:
             return ob.PlannerStatus(ob.PlannerStatus.TIMEOUT)
 
@@ -239,10 +252,17 @@ class IKBiRRT(ob.Planner):
             if self._rng.random() < self.options.p_sample_goal:
                 root = goal.sample(max_restarts=self.options.goal_restarts)
                 if root is not None:
-                    self._retreat(goal, goal_tree, goal_tree.add(root, -1))
+                    approach = self._retreat(goal, goal_tree, goal_tree.add(root, -1))
                 continue
             grow, other = trees
-            target = self._rng.uniform(lower, upper)
+            if approach is not None and self.options.aim_new_roots:
+                # A new root is first aimed at straight from the start tree: on an open
+                # scene that is the whole plan.
+                grow, other = start_tree, goal_tree
+                target = goal_tree.nodes[approach].copy()
+                approach = None
+            else:
+                target = self._rng.uniform(lower, upper)
             result, new = self._extend(checker, grow, target, ptc)
             if result is not _Extend.TRAPPED:
                 result, met = self._extend(checker, other, grow.nodes[new], ptc)
@@ -281,10 +301,11 @@ class IKBiRRT(ob.Planner):
             goal_tree.nodes[i].copy() for i in to_goal[::-1][1:]
         ]
 
-    def _retreat(self, goal: GraspGoal, tree: _Tree, root: int) -> None:
+    def _retreat(self, goal: GraspGoal, tree: _Tree, root: int) -> int:
         """Grow the straight palm retreat from the goal root ``root`` (see the module
         docstring); a step that collides, that IK cannot reach, or that takes more than
-        one ``max_step`` of joint motion (near a singularity) ends it."""
+        one ``max_step`` of joint motion (near a singularity) ends it. Returns the index of
+        its last vertex (the root itself when no step was free)."""
         options = self.options
         checker = goal.checker
         steps = math.ceil(options.retreat / options.retreat_step - 1e-9)
@@ -294,12 +315,13 @@ class IKBiRRT(ob.Planner):
         for _ in range(steps):
             nxt = goal.ik.palm_step(q, offset)
             if nxt is None or float(np.linalg.norm(nxt - q)) > options.max_step:
-                return
+                return index
             if not checker.check_motion(q, nxt):
-                return
+                return index
             index = tree.add(nxt, index)
             self.retreat_vertices += 1
             q = nxt
+        return index
 
     def _extend(
         self, checker: object, tree: _Tree, target: np.ndarray, ptc: ob.PlannerTerminationCondition
