@@ -81,11 +81,27 @@ def distance_rates(robot: Robot, law: HandLaw, start_distance: float) -> np.ndar
         law: The hand law (its distance kind and rotation weight).
         start_distance: Algorithm 1's denominator [m].
     """
+    return (palm_reach(robot) + _rotation_rates(robot, law)) / start_distance
+
+
+def _rotation_rates(robot: Robot, law: HandLaw) -> np.ndarray:
+    """With the weighted distance, each revolute arm joint also turns the palm by at most
+    one radian per radian: ``rotation_weight`` per revolute joint, else 0."""
+    model = robot.model
+    rotation = law.rotation_weight if law.distance == "weighted" else 0.0
+    arm_ids = [model.getJointId(name) for name in robot.spec.arm_joints]
+    return np.array([0.0 if is_prismatic(model.joints[j]) else rotation for j in arm_ids])
+
+
+def palm_reach(robot: Robot) -> np.ndarray:
+    """Per arm joint, an upper bound [m] on the distance from its origin to the palm frame's
+    origin over every configuration (0 for a joint that does not move the palm): how far
+    the palm moves per radian of that joint."""
     model = robot.model
     arm_ids = [model.getJointId(name) for name in robot.spec.arm_joints]
     palm = model.frames[robot.palm_frame_id]
     palm_offset = float(np.linalg.norm(palm.placement.translation))
-    palm_reach = np.array(
+    return np.array(
         [
             _chain_length(model, j, palm.parentJoint) + palm_offset
             if palm.parentJoint in set(model.subtrees[j])
@@ -93,11 +109,51 @@ def distance_rates(robot: Robot, law: HandLaw, start_distance: float) -> np.ndar
             for j in arm_ids
         ]
     )
-    # The palm moves by at most palm_reach per unit; with the weighted distance, each
-    # revolute joint also turns it by at most one radian per radian.
-    rotation = law.rotation_weight if law.distance == "weighted" else 0.0
-    revolute = np.array([0.0 if is_prismatic(model.joints[j]) else 1.0 for j in arm_ids])
-    return (palm_reach + rotation * revolute) / start_distance
+
+
+def local_rate_terms(
+    robot: Robot, law: HandLaw
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """What :meth:`~openup_ompl.validity.CoupledChecker.check_motion` needs to bound how
+    fast ``d`` changes along one motion more tightly than :func:`distance_rates` (``None``
+    for an arm with a prismatic joint, where the global rates are used).
+
+    Two bounds of the palm's speed along a straight motion ``q(t) = a + t (b - a)``,
+    ``t`` in [0, 1], for revolute joints (the axis ``w_i`` of joint ``i`` through its
+    origin ``o_i``; the palm at ``p``):
+
+    - per joint: joint ``i`` moves the palm by at most ``|p - o_i|`` per radian, and
+      along the motion ``|p - o_i|`` grows at most by what the joints between ``i`` and the
+      palm move the palm relative to joint ``i``: ``sum_j chain[i, j] |b_j - a_j|``;
+    - second order: ``d2p/dq_i dq_j = w_i x (w_j x (p - o_j))`` for ``i`` before ``j``
+      in the chain, of norm at most ``j``'s :func:`palm_reach`, so
+      ``|p''(t)| <= K = |b - a|^T second |b - a|``; with Taylor's remainder the palm's
+      speed is at most ``|p(b) - p(a)| + 1.5 K`` all along.
+
+    Returns:
+        ``chain`` and ``second`` (arm joints x arm joints) [m per joint unit] and the
+        rotation term of :func:`distance_rates` (before the division by the start
+        distance).
+    """
+    model = robot.model
+    arm_ids = [model.getJointId(name) for name in robot.spec.arm_joints]
+    if any(is_prismatic(model.joints[j]) for j in arm_ids):
+        return None
+    reach = palm_reach(robot)
+    n = len(arm_ids)
+    chain = np.zeros((n, n))
+    second = np.zeros((n, n))
+    for i, joint in enumerate(arm_ids):
+        below = set(model.subtrees[joint])
+        for j, other in enumerate(arm_ids):
+            if other in below and other != joint:
+                chain[i, j] = reach[j]
+            if reach[i] > 0 and reach[j] > 0:
+                # The later joint of the two in the chain (both move the palm, so one
+                # lies below the other).
+                later = j if other in below else i
+                second[i, j] = reach[later]
+    return chain, second, _rotation_rates(robot, law)
 
 
 def motion_weights(robot: Robot, law: HandLaw, start_distance: float) -> np.ndarray:

@@ -17,7 +17,13 @@ from ompl import base as ob
 from openup_ompl.collision import CollisionWorld, ThreadContext
 from openup_ompl.exceptions import ConfigError
 from openup_ompl.hand_law import HandLaw, NormalizedDistance
-from openup_ompl.motion_bound import arm_weights, distance_rates, motion_weights
+from openup_ompl.motion_bound import (
+    arm_weights,
+    distance_rates,
+    hand_rate,
+    local_rate_terms,
+    motion_weights,
+)
 from openup_ompl.scene import Problem
 
 #: Default motion-check resolution [m]: the largest distance any point of the robot may
@@ -131,6 +137,14 @@ class CoupledChecker:
         self.motion_weights = motion_weights(self.robot, self.law, start_distance)
         self.plateau_weights = arm_weights(self.robot)
         self.distance_rates = distance_rates(self.robot, self.law, start_distance)
+        model = self._model
+        self._hand_rate = hand_rate(
+            self.robot, [model.getJointId(n) for n in self.robot.hand_joints], self.law
+        )
+        self._local_terms = (
+            None if self.law.fixed is not None else local_rate_terms(self.robot, self.law)
+        )
+        self._arm_joint_ids = [model.getJointId(n) for n in self.robot.spec.arm_joints]
         self.states_checked = 0
         self.motions_checked = 0
         self.certified: set[bytes] = set()
@@ -218,6 +232,36 @@ class CoupledChecker:
         if 0.5 * (da + db - spread) > self.law.mga:
             return self.plateau_weights
         return self.motion_weights
+
+    def _motion_spread(self, abs_delta: np.ndarray) -> float:
+        """How much ``d`` can change per unit of ``t`` along the motion ``a -> b`` with
+        ``abs_delta = |b - a|`` (at most :attr:`distance_rates` ``@ abs_delta``). Call it
+        right after :meth:`_check_state` of ``b`` and :meth:`normalized_distance` of ``a``:
+        it reads their forward kinematics from the finest and the first world's contexts.
+
+        The smaller of the two palm-speed bounds of
+        :func:`~openup_ompl.motion_bound.local_rate_terms`, from the palm's and the
+        joints' placements at the motion's ends. Near the grasp the palm is far closer to
+        the shoulder than the stretched arm's chain length that bounds
+        :attr:`distance_rates`, and a short motion moves it nearly straight: a 25 mm step
+        of the LWA3's retreat is bounded at 33 mm of palm motion instead of 200 mm, and
+        the fingers' share of its displacement bound shrinks with it.
+        """
+        spread = float(self.distance_rates @ abs_delta)
+        if self._local_terms is None:
+            return spread
+        chain, second, rotation = self._local_terms
+        data = self.world.context().data
+        palm_a = data.oMf[self._palm].translation.tolist()
+        palm_b = self.finest_world.context().data.oMf[self._palm].translation.tolist()
+        origins = data.oMi
+        r = np.asarray(
+            [math.dist(palm_a, origins[j].translation.tolist()) for j in self._arm_joint_ids]
+        )
+        turn = float(rotation @ abs_delta)
+        per_joint = float((r + chain @ abs_delta) @ abs_delta)
+        taylor = math.dist(palm_a, palm_b) + 1.5 * float(abs_delta @ second @ abs_delta)
+        return min(spread, (min(per_joint, taylor) + turn) * self._inv_start)
 
     def segment_count(
         self,
@@ -352,18 +396,31 @@ class CoupledChecker:
             return False
         fixed = self.law.fixed is not None
         ends = (math.inf, math.inf) if fixed else (self.normalized_distance(a), db)
-        weights = self.weights(a, b, ends)
         delta = b - a
-        reach = float(np.abs(delta) @ weights)  # no robot point moves farther [m]
+        abs_delta = np.abs(delta)
+        weights = self.weights(a, b, ends)
+        spread = float(self.distance_rates @ abs_delta)  # d changes by at most [per unit t]
+        if weights is not self.plateau_weights and self._local_terms is not None:
+            # The law may move the fingers: bound d along this motion from its ends.
+            spread = self._motion_spread(abs_delta)
+            if 0.5 * (ends[0] + ends[1] - spread) > self.law.mga:
+                weights = self.plateau_weights
+        # No robot point moves farther [m]: the arm's share, and the fingers' through d.
+        if fixed or weights is self.plateau_weights:
+            reach = float(abs_delta @ weights)
+        else:
+            reach = float(abs_delta @ self.plateau_weights) + self._hand_rate * spread
         pads = self._pads
         if pads[-1] <= 0.0:  # no padding: plain resolution checks, no guarantee
             n = max(1, math.ceil(reach / self.resolution))
-            qs = self._states(a, delta, np.arange(n + 1) / n, ends)
+            qs = self._states(a, delta, np.arange(n + 1) / n, ends, spread)
             self.states_checked += n + 1
             return not np.any(self.finest_world.batch_in_collision(qs))
         n = max(1, math.ceil(reach / (2.0 * pads[0])))
         t = np.arange(n + 1) / n
-        levels = self._margins(self._states(a, delta, t, ends), np.zeros(n + 1, dtype=np.intp))
+        levels = self._margins(
+            self._states(a, delta, t, ends, spread), np.zeros(n + 1, dtype=np.intp)
+        )
         if levels is None:
             return False
         while True:
@@ -381,7 +438,7 @@ class CoupledChecker:
             first = np.cumsum(pieces - 1) - (pieces - 1)
             rank = np.arange(owner.size) - first[owner] + 1
             new_t = t[open_][owner] + rank * (np.diff(t)[open_] / pieces)[owner]
-            new_levels = self._margins(self._states(a, delta, new_t, ends), thinner[owner])
+            new_levels = self._margins(self._states(a, delta, new_t, ends, spread), thinner[owner])
             if new_levels is None:
                 return False
             order = np.argsort(np.concatenate([t, new_t]), kind="stable")
@@ -402,16 +459,25 @@ class CoupledChecker:
         return a.tobytes() + b.tobytes() in keys or b.tobytes() + a.tobytes() in keys
 
     def _states(
-        self, a: np.ndarray, delta: np.ndarray, t: np.ndarray, ends: tuple[float, float]
+        self,
+        a: np.ndarray,
+        delta: np.ndarray,
+        t: np.ndarray,
+        ends: tuple[float, float],
+        spread: float | None = None,
     ) -> np.ndarray:
         """Full configurations ``(nq, len(t))`` at ``a + t * delta`` (``t`` in [0, 1]), the
-        hand from the law; ``ends`` are ``d`` at ``t = 0`` and ``t = 1``."""
+        hand from the law; ``ends`` are ``d`` at ``t = 0`` and ``t = 1``, ``spread`` how
+        much ``d`` changes at most per unit of ``t`` (default :attr:`distance_rates`
+        ``@ |delta|``)."""
+        if spread is None:
+            spread = float(self.distance_rates @ np.abs(delta))
         # The hands of _set_hands, which bounds d from the motion's two ends: bracket the
         # states with them where t does not hold them.
         bracket = not (t[0] == 0.0 and t[-1] == 1.0)
         at = np.concatenate([[0.0], t, [1.0]]) if bracket else t
         qs = self._arm_qs(a + at[:, None] * delta)
-        self._set_hands(qs, at * float(self.distance_rates @ np.abs(delta)), ends)
+        self._set_hands(qs, at * spread, ends)
         return qs[:, 1:-1] if bracket else qs
 
     def _margins(self, qs: np.ndarray, first: np.ndarray) -> np.ndarray | None:

@@ -92,6 +92,36 @@ def test_motion_bound_covers_every_geometry(robot_setup: oo.GraspPlanningSetup) 
     assert hand_moved >= 50 and plateau >= 50
 
 
+def test_motion_spread_bounds_d_along_motions(robot_setup: oo.GraspPlanningSetup) -> None:
+    """The per-motion bound of how fast ``d`` changes (from the palm's and the joints'
+    placements at the motion's ends) holds between any two states of the motion, is never
+    above the global Lipschitz bound, and is far below it on short motions at the grasp
+    (the retreat's)."""
+    checker = robot_setup.checker
+    robot = robot_setup.problem.robot
+    grasp = robot_setup.goal.solutions[0]
+    rng = np.random.default_rng(3)
+    t = np.linspace(0.0, 1.0, 41)
+    short = []  # spread / Lipschitz bound on retreat-sized motions at the grasp
+    for k in range(80):
+        centre = rng.uniform(robot.arm_lower, robot.arm_upper) if k % 4 == 3 else grasp
+        a = np.clip(centre + rng.normal(0.0, 0.02, centre.size), robot.arm_lower, robot.arm_upper)
+        scale = (0.01, 0.05, 0.2, 0.4)[k % 4]
+        b = np.clip(a + rng.normal(0.0, scale, a.size), robot.arm_lower, robot.arm_upper)
+        abs_delta = np.abs(b - a)
+        checker._check_state(b)
+        checker.normalized_distance(a)
+        spread = checker._motion_spread(abs_delta)
+        lipschitz = float(checker.distance_rates @ abs_delta)
+        assert spread <= lipschitz + 1e-12
+        if k % 4 == 0:
+            short.append(spread / lipschitz)
+        d = np.array([checker.normalized_distance(a + x * (b - a)) for x in t])
+        gaps = np.abs(d[:, None] - d[None, :])
+        assert np.all(gaps <= spread * np.abs(t[:, None] - t[None, :]) + 1e-12)
+    assert np.median(short) < 0.6
+
+
 def test_batched_hands_are_the_laws(robot_setup: oo.GraspPlanningSetup) -> None:
     """The batches of a motion check and of plan rows, whose states skip forward
     kinematics where the Lipschitz bound of ``d`` keeps them on the plateau, hold at every
