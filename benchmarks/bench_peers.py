@@ -282,7 +282,9 @@ def run_reference(peers: Peers, time_limit: float) -> dict[str, Any]:
     ss.clear()
     checks_before = checker.checks
     started = time.perf_counter()
-    status = ss.solve(float(time_limit))
+    # The limit checked inline, as GraspPlanningSetup.solve does (OMPL's solve(seconds)
+    # starts and joins a thread per call for limits of 1 s or more).
+    status = ss.solve(ob.timedPlannerTerminationCondition(float(time_limit)))
     wall = time.perf_counter() - started
     solved = status == ob.PlannerStatus.EXACT_SOLUTION and ss.haveExactSolutionPath()
     result: dict[str, Any] = {
