@@ -156,21 +156,6 @@ def local_rate_terms(
     return chain, second, _rotation_rates(robot, law)
 
 
-def motion_weights(robot: Robot, law: HandLaw, start_distance: float) -> np.ndarray:
-    """Per-arm-joint weights ``W`` [m per joint unit] of the displacement bound.
-
-    Args:
-        robot: The robot.
-        law: The hand law (its slope bounds how fast the fingers move with ``d``).
-        start_distance: Algorithm 1's denominator [m].
-    """
-    weights = arm_weights(robot)
-    if law.fixed is not None:
-        return weights
-    hand_ids = [robot.model.getJointId(name) for name in robot.hand_joints]
-    return weights + hand_rate(robot, hand_ids, law) * distance_rates(robot, law, start_distance)
-
-
 def arm_weights(robot: Robot) -> np.ndarray:
     """Per-arm-joint weights [m per joint unit] of the bound with the hand still: enough
     wherever the law's hand does not move (a fixed hand, or ``d`` above ``mga``)."""

@@ -22,7 +22,6 @@ from openup_ompl.motion_bound import (
     distance_rates,
     hand_rate,
     local_rate_terms,
-    motion_weights,
 )
 from openup_ompl.scene import Problem
 
@@ -134,13 +133,19 @@ class CoupledChecker:
         self._goal = problem.grasp.translation.tolist()
         self._inv_start = 1.0 / self.goal_distance.start_distance
         start_distance = self.goal_distance.start_distance
-        self.motion_weights = motion_weights(self.robot, self.law, start_distance)
         self.plateau_weights = arm_weights(self.robot)
         self.distance_rates = distance_rates(self.robot, self.law, start_distance)
         model = self._model
-        self._hand_rate = hand_rate(
-            self.robot, [model.getJointId(n) for n in self.robot.hand_joints], self.law
+        # Fingers' displacement per unit of d (none for a fixed hand); with the rates of d
+        # it gives the fingers' share of the bound.
+        self._hand_rate = (
+            0.0
+            if self.law.fixed is not None
+            else hand_rate(
+                self.robot, [model.getJointId(n) for n in self.robot.hand_joints], self.law
+            )
         )
+        self.motion_weights = self.plateau_weights + self._hand_rate * self.distance_rates
         self._local_terms = (
             None if self.law.fixed is not None else local_rate_terms(self.robot, self.law)
         )
@@ -398,18 +403,17 @@ class CoupledChecker:
         ends = (math.inf, math.inf) if fixed else (self.normalized_distance(a), db)
         delta = b - a
         abs_delta = np.abs(delta)
-        weights = self.weights(a, b, ends)
         spread = float(self.distance_rates @ abs_delta)  # d changes by at most [per unit t]
-        if weights is not self.plateau_weights and self._local_terms is not None:
-            # The law may move the fingers: bound d along this motion from its ends.
+        # The fingers may move where d may reach mga along the motion (see weights()).
+        fingers_move = not fixed and 0.5 * (ends[0] + ends[1] - spread) <= self.law.mga
+        if fingers_move and self._local_terms is not None:
+            # Bound d along this motion from its ends, tighter than the global rates.
             spread = self._motion_spread(abs_delta)
-            if 0.5 * (ends[0] + ends[1] - spread) > self.law.mga:
-                weights = self.plateau_weights
+            fingers_move = 0.5 * (ends[0] + ends[1] - spread) <= self.law.mga
         # No robot point moves farther [m]: the arm's share, and the fingers' through d.
-        if fixed or weights is self.plateau_weights:
-            reach = float(abs_delta @ weights)
-        else:
-            reach = float(abs_delta @ self.plateau_weights) + self._hand_rate * spread
+        reach = float(abs_delta @ self.plateau_weights)
+        if fingers_move:
+            reach += self._hand_rate * spread
         pads = self._pads
         if pads[-1] <= 0.0:  # no padding: plain resolution checks, no guarantee
             n = max(1, math.ceil(reach / self.resolution))
