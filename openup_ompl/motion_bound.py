@@ -16,6 +16,8 @@ obstacles (each point stays within ``resolution / 2`` of a checked position).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import pinocchio as pin
 
@@ -127,8 +129,10 @@ def local_rate_terms(
       palm move the palm relative to joint ``i``: ``sum_j chain[i, j] |b_j - a_j|``;
     - second order: ``d2p/dq_i dq_j = w_i x (w_j x (p - o_j))`` for ``i`` before ``j``
       in the chain, of norm at most ``j``'s :func:`palm_reach`, so
-      ``|p''(t)| <= K = |b - a|^T second |b - a|``; with Taylor's remainder the palm's
-      speed is at most ``|p(b) - p(a)| + 1.5 K`` all along.
+      ``|p''(t)| <= K = |b - a|^T second |b - a|``, so ``p'(t)`` differs from the mean
+      velocity ``p(b) - p(a)`` by at most ``K / 2`` (``|p'(t) - p'(s)| <= K |t - s|``,
+      averaged over ``s`` in [0, 1]): the palm's speed is at most ``|p(b) - p(a)| + K / 2``
+      all along.
 
     Returns:
         ``chain`` and ``second`` (arm joints x arm joints) [m per joint unit] and the
@@ -187,3 +191,137 @@ def hand_rate(robot: Robot, hand_ids: list[int], law: HandLaw) -> float:
             joint_id = model.parents[joint_id]
         chains.append(total)
     return max(chains, default=0.0)
+
+
+@dataclass(frozen=True)
+class BodyBounds:
+    """What :func:`local_reach` needs to bound, for one straight motion, how far any robot
+    point moves through the arm's motion: one sphere per arm joint that carries geometry,
+    fixed in that joint's frame, enclosing every point that moves rigidly with it; a hand
+    on the last joint is enclosed in every finger configuration (the fingers' own motion
+    is bounded apart, through ``d``).
+
+    Attributes:
+        arm_index: For each body ``k``, the index (in ``spec.arm_joints``) of its joint.
+        centers: Sphere centres in their joint's frame, ``(m, 3)`` [m].
+        radii: Sphere radii, ``(m,)`` [m].
+        second: ``(m, n * n)``: ``|d2x/dq_i dq_j| <= second[k, i * n + j]`` [m] for a point
+            ``x`` of body ``k``: the distance from the later of joints ``i`` and ``j`` in
+            the chain to any point of the body, over every configuration (0 unless both
+            move it).
+    """
+
+    arm_index: np.ndarray
+    centers: np.ndarray
+    radii: np.ndarray
+    second: np.ndarray
+
+
+def body_bounds(robot: Robot) -> BodyBounds | None:
+    """The spheres and constants of :func:`local_reach` for a robot (``None`` for an arm
+    with a prismatic joint, which the second-order bound below does not cover).
+
+    Each collision geometry belongs to its nearest arm-joint ancestor ``A`` (geometry that
+    no arm joint moves is left out). Its points lie, from a point ``y`` fixed in ``A``'s
+    frame, within ``|y - c| + e``: ``c`` the centre of its local box and ``e`` the box's
+    radius for geometry on ``A`` itself; for geometry under further (finger) joints, ``c``
+    the origin of the first of them and ``e`` the chain length to the geometry's joint
+    plus the geometry's extent, whatever the fingers do.
+    """
+    model = robot.model
+    arm_ids = [model.getJointId(name) for name in robot.spec.arm_joints]
+    if any(is_prismatic(model.joints[j]) for j in arm_ids):
+        return None
+    arm_set = set(arm_ids)
+    members: dict[int, list[tuple[np.ndarray, float]]] = {}
+    for geometry in robot.collision_model.geometryObjects:
+        path = []  # joints from the geometry's up to its nearest arm joint
+        joint = geometry.parentJoint
+        while joint != 0 and joint not in arm_set:
+            path.append(joint)
+            joint = model.parents[joint]
+        if joint == 0:
+            continue  # no arm joint moves it
+        shape = geometry.geometry
+        shape.computeLocalAABB()
+        if not path:
+            anchor = geometry.placement.act(np.asarray(shape.aabb_center))
+            extent = float(shape.aabb_radius)
+        else:
+            first = path[-1]
+            anchor = np.asarray(model.jointPlacements[first].translation)
+            extent = (
+                _chain_length(model, first, geometry.parentJoint)
+                + _travel(model, first)
+                + _travel(model, geometry.parentJoint)
+                + float(np.linalg.norm(geometry.placement.translation))
+                + float(np.linalg.norm(shape.aabb_center))
+                + float(shape.aabb_radius)
+            )
+        members.setdefault(joint, []).append((np.asarray(anchor, dtype=float), extent))
+    bodies = [j for j in arm_ids if j in members]
+    if not bodies:
+        return None
+    n, m = len(arm_ids), len(bodies)
+    centers = np.zeros((m, 3))
+    radii = np.zeros(m)
+    far = np.zeros(m)  # from the body joint's origin
+    for k, joint in enumerate(bodies):
+        anchors = np.array([a for a, _ in members[joint]])
+        extents = np.array([e for _, e in members[joint]])
+        center = 0.5 * (anchors.min(axis=0) + anchors.max(axis=0))
+        centers[k] = center
+        radii[k] = float(np.max(np.linalg.norm(anchors - center, axis=1) + extents))
+        far[k] = float(np.max(np.linalg.norm(anchors, axis=1) + extents))
+    # reach[j, k]: distance from arm joint j's origin to any point of body k (0 if j does
+    # not move k).
+    reach = np.zeros((n, m))
+    for j, joint in enumerate(arm_ids):
+        below = set(model.subtrees[joint])
+        for k, body in enumerate(bodies):
+            if body in below:
+                reach[j, k] = _chain_length(model, joint, body) + far[k]
+    second = np.zeros((m, n, n))
+    for i, joint in enumerate(arm_ids):
+        below = set(model.subtrees[joint])
+        for j, other in enumerate(arm_ids):
+            later = j if other in below else i  # both move the body: one lies below the other
+            second[:, i, j] = np.where((reach[i] > 0) & (reach[j] > 0), reach[later], 0.0)
+    index = {joint: i for i, joint in enumerate(arm_ids)}
+    return BodyBounds(
+        arm_index=np.array([index[b] for b in bodies]),
+        centers=centers,
+        radii=radii,
+        second=second.reshape(m, n * n),
+    )
+
+
+def local_reach(
+    bounds: BodyBounds, frames_a: np.ndarray, frames_b: np.ndarray, abs_delta: np.ndarray
+) -> float:
+    """Bound [m] on how far any robot point moves through the arm along the straight motion
+    ``q(t) = a + t (b - a)``, ``t`` in [0, 1], per unit of ``t``, from the arm joints'
+    placements at both ends (``frames_a``, ``frames_b``: ``(n, 4, 4)`` homogeneous, in
+    ``spec.arm_joints`` order) and ``abs_delta = |b - a|``. The fingers' own motion under
+    the law is not included.
+
+    A point ``x`` of body ``k`` (fixed in its joint's frame) has ``|x''(t)| <= K``, the
+    quadratic form of ``second[k]`` in ``|b - a|`` (``d2x/dq_i dq_j = w_i x (w_j x (x -
+    o_j))`` for ``i`` before ``j`` in the chain), so its velocity differs from its mean
+    ``x(1) - x(0)`` by at most ``K / 2`` anywhere; ``|x(1) - x(0)|`` is at most the
+    sphere centre's displacement plus the radius times ``2 sin(angle / 2)``, ``angle``
+    the body's rotation between the ends. The
+    largest over the bodies bounds every point. A short coordinated motion (a palm
+    retreat) moves the robot far less than the global weights' sum over the joints says;
+    for long motions the global bound is the smaller and the caller keeps it.
+    """
+    index = bounds.arm_index
+    frames_a, frames_b = frames_a[index], frames_b[index]
+    turn = frames_b[:, :3, :3] - frames_a[:, :3, :3]
+    moved = (turn @ bounds.centers[:, :, None])[:, :, 0] + (frames_b[:, :3, 3] - frames_a[:, :3, 3])
+    # A point at r from the centre moves by |(R_b - R_a) r| <= 2 sin(angle / 2) |r| more,
+    # and the Frobenius norm of R_b - R_a is sqrt(2) times 2 sin(angle / 2).
+    spin = np.sqrt((turn * turn).sum(axis=(1, 2)) * 0.5)
+    curvature = bounds.second @ np.outer(abs_delta, abs_delta).ravel()
+    speed = np.sqrt((moved * moved).sum(axis=1)) + bounds.radii * spin + 0.5 * curvature
+    return float(speed.max())

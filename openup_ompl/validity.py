@@ -19,9 +19,11 @@ from openup_ompl.exceptions import ConfigError
 from openup_ompl.hand_law import HandLaw, NormalizedDistance
 from openup_ompl.motion_bound import (
     arm_weights,
+    body_bounds,
     distance_rates,
     hand_rate,
     local_rate_terms,
+    local_reach,
 )
 from openup_ompl.scene import Problem
 
@@ -45,6 +47,13 @@ REFINE_LEVELS = 3
 #: margins between are used where the robot passes closer (see
 #: :meth:`CoupledChecker.check_motion`).
 COARSE_LEVELS = 3
+#: A motion's displacement bound is tightened from its two ends' placements
+#: (:func:`~openup_ompl.motion_bound.local_reach`, about 30 us) when the global weights'
+#: bound spans more than this many of the first round's intervals, or when the first round
+#: leaves intervals that need at least ``LOCAL_REACH_MIN_STATES`` more states: below
+#: these, reading the placements costs more than the states it would spare.
+LOCAL_REACH_MIN_INTERVALS = 8
+LOCAL_REACH_MIN_STATES = 8
 #: Accepted motions remembered by :attr:`CoupledChecker.certified` at most.
 CERTIFIED_MAX = 200_000
 
@@ -150,6 +159,7 @@ class CoupledChecker:
             None if self.law.fixed is not None else local_rate_terms(self.robot, self.law)
         )
         self._arm_joint_ids = [model.getJointId(n) for n in self.robot.spec.arm_joints]
+        self._bodies = body_bounds(self.robot)
         self.states_checked = 0
         self.motions_checked = 0
         self.certified: set[bytes] = set()
@@ -265,8 +275,32 @@ class CoupledChecker:
         )
         turn = float(rotation @ abs_delta)
         per_joint = float((r + chain @ abs_delta) @ abs_delta)
-        taylor = math.dist(palm_a, palm_b) + 1.5 * float(abs_delta @ second @ abs_delta)
+        taylor = math.dist(palm_a, palm_b) + 0.5 * float(abs_delta @ second @ abs_delta)
         return min(spread, (min(per_joint, taylor) + turn) * self._inv_start)
+
+    def _local_may_pay(self, abs_delta: np.ndarray, arm: float) -> bool:
+        """Whether :meth:`_local_reach` may bound the arm's share well below ``arm`` (the
+        global bound): its curvature term alone, known without forward kinematics, stays
+        under half of it."""
+        assert self._bodies is not None
+        curvature = self._bodies.second @ np.outer(abs_delta, abs_delta).ravel()
+        return 0.5 * float(curvature.max()) < 0.5 * arm
+
+    def _local_reach(self, a: np.ndarray, b: np.ndarray, abs_delta: np.ndarray) -> float:
+        """The arm's share of the displacement bound of the motion ``a -> b``, from the arm
+        joints' placements at its two ends (:func:`~openup_ompl.motion_bound.local_reach`),
+        computed in the finest world's context (whose next check recomputes it)."""
+        assert self._bodies is not None
+        ids = self._arm_joint_ids
+        context = self.finest_world.context()
+        q, data, model = context.q, context.data, self._model
+        frames = []
+        for arm in (a, b):
+            q[self._arm_sel] = arm
+            pin.forwardKinematics(model, data, q)
+            placements = data.oMi.tolist()  # one call, not one per joint
+            frames.append(np.array([placements[j].homogeneous for j in ids]))
+        return local_reach(self._bodies, frames[0], frames[1], abs_delta)
 
     def segment_count(
         self,
@@ -308,18 +342,20 @@ class CoupledChecker:
 
     def _set_hands(
         self, qs: np.ndarray, path: np.ndarray, ends: tuple[float, float] | None = None
-    ) -> None:
-        """Write the law's hands into the columns of ``qs``, ``d`` bounded along ``path``
-        (see :meth:`_law_distances`)."""
+    ) -> np.ndarray | None:
+        """Write the law's hands into the columns of ``qs``, ``d`` bounded along ``path``;
+        return the lower bounds of ``d`` used (see :meth:`_law_distances`; ``None`` for a
+        fixed hand)."""
         law = self.law
         if law.fixed_clipped is not None:
             qs[self._hand_sel, :] = law.fixed_clipped[:, None]
-            return
+            return None
         d = self._law_distances(qs, path, ends)
         if np.any(d <= law.mga):
             qs[self._hand_sel, :] = law.batch(d).T
         else:  # all on the plateau
             qs[self._hand_sel, :] = law.high[:, None]
+        return d
 
     def _arm_qs(self, arms: np.ndarray) -> np.ndarray:
         """``(nq, n)`` configurations with the arm joints of ``arms``, the rest neutral."""
@@ -338,8 +374,8 @@ class CoupledChecker:
     def _law_distances(
         self, qs: np.ndarray, path: np.ndarray, ends: tuple[float, float] | None = None
     ) -> np.ndarray:
-        """``d`` for the columns of ``qs``, or a value above ``mga`` where the hand is
-        certainly on the law's plateau.
+        """``d`` for the columns of ``qs``, or a lower bound of it above ``mga`` where the
+        hand is certainly on the law's plateau.
 
         Only ``d <= mga`` changes the hand. ``d`` is Lipschitz in the arm joints
         (:func:`~openup_ompl.motion_bound.distance_rates`), so along the states
@@ -363,6 +399,7 @@ class CoupledChecker:
         if n <= 2:
             return d
         bound = np.maximum(d[0] - path, d[-1] - (path[-1] - path))
+        d[1:-1] = bound[1:-1]
         need = np.flatnonzero(bound[1:-1] <= mga) + 1
         if need.size > ANCHOR_STRIDE:
             anchors = need[::ANCHOR_STRIDE]
@@ -375,6 +412,7 @@ class CoupledChecker:
             bound = np.maximum(
                 d[left] - (path[rest] - path[left]), d[right] - (path[right] - path[rest])
             )
+            d[rest] = bound
             need = rest[bound <= mga]
         for k in need.tolist():
             d[k] = distance(data, qs[:, k])
@@ -394,6 +432,14 @@ class CoupledChecker:
         new states from that margin on; a state that collides even with the finest margin
         refuses the motion. Each round's states of one margin go to Coal in one batch
         (:meth:`~openup_ompl.collision.CollisionWorld.batch_in_collision`).
+
+        The displacement bound is the arm's share plus the fingers'. The arm's is the
+        global weights' (:attr:`plateau_weights`), or, once the motion needs more than the
+        first round or is long, the smaller bound from its two ends' placements
+        (:func:`~openup_ompl.motion_bound.local_reach`). The fingers' is counted only over
+        the intervals where ``d`` may reach ``mga`` (from the lower bounds of ``d`` at
+        their two states and how fast ``d`` changes along the motion): elsewhere the
+        hand is on the law's plateau and still.
         """
         self.motions_checked += 1
         free, db = self._check_state(b)
@@ -410,26 +456,47 @@ class CoupledChecker:
             # Bound d along this motion from its ends, tighter than the global rates.
             spread = self._motion_spread(abs_delta)
             fingers_move = 0.5 * (ends[0] + ends[1] - spread) <= self.law.mga
-        # No robot point moves farther [m]: the arm's share, and the fingers' through d.
-        reach = float(abs_delta @ self.plateau_weights)
-        if fingers_move:
-            reach += self._hand_rate * spread
+        # No robot point moves farther [m] per unit of t than the arm's share, plus the
+        # fingers' (through d) where d may be at or below mga.
+        arm = float(abs_delta @ self.plateau_weights)
+        fingers = self._hand_rate * spread if fingers_move else 0.0
+        mga = self.law.mga
+        # The part of the motion where d may reach mga (from the ends and the spread).
+        window = 1.0
+        if fingers > 0.0:
+            window -= (max(ends[0] - mga, 0.0) + max(ends[1] - mga, 0.0)) / spread
+            window = min(max(window, 0.0), 1.0)
         pads = self._pads
+        # The arm's share tightened from the motion's ends (local_reach) at once for a long
+        # motion, else only if the first pass does not settle it.
+        tighten = self._bodies is not None and self._local_may_pay(abs_delta, arm)
+        if tighten and arm + fingers * window > LOCAL_REACH_MIN_INTERVALS * 2.0 * pads[0]:
+            arm = min(arm, self._local_reach(a, b, abs_delta))
+            tighten = False
         if pads[-1] <= 0.0:  # no padding: plain resolution checks, no guarantee
-            n = max(1, math.ceil(reach / self.resolution))
-            qs = self._states(a, delta, np.arange(n + 1) / n, ends, spread)
+            n = max(1, math.ceil((arm + fingers) / self.resolution))
+            qs, _ = self._states_d(a, delta, np.arange(n + 1) / n, ends, spread)
             self.states_checked += n + 1
             return not np.any(self.finest_world.batch_in_collision(qs))
-        n = max(1, math.ceil(reach / (2.0 * pads[0])))
+        # The first round counts the fingers where they move at an end; elsewhere the
+        # rounds after it cut the intervals where d comes near mga.
+        first = arm + (fingers * window if min(ends) <= mga else 0.0)
+        n = max(1, math.ceil(first / (2.0 * pads[0])))
         t = np.arange(n + 1) / n
-        levels = self._margins(
-            self._states(a, delta, t, ends, spread), np.zeros(n + 1, dtype=np.intp)
-        )
+        qs, low = self._states_d(a, delta, t, ends, spread)
+        levels = self._margins(qs, np.zeros(n + 1, dtype=np.intp))
         if levels is None:
             return False
         while True:
             margin = pads[levels]
-            gap = np.diff(t) * reach
+            dt = np.diff(t)
+            if fingers > 0.0 and low is not None:
+                # The fingers stay on the plateau over an interval whose ends' lower bounds
+                # of d keep d above mga all along it.
+                moving = low[:-1] + low[1:] - spread * dt <= 2.0 * mga
+                gap = dt * (arm + fingers * moving)
+            else:
+                gap = dt * arm
             open_ = np.flatnonzero(gap > (margin[:-1] + margin[1:]) * (1.0 - 1e-12))
             if open_.size == 0:
                 self._certified(a, b)
@@ -438,16 +505,24 @@ class CoupledChecker:
             thinner = np.maximum(levels[open_], levels[open_ + 1])
             pieces = np.maximum(np.ceil(gap[open_] / (2.0 * pads[thinner]) - 1e-9), 2)
             pieces = pieces.astype(np.intp)
+            if tighten:
+                tighten = False
+                if int(pieces.sum()) - pieces.size >= LOCAL_REACH_MIN_STATES:
+                    arm = min(arm, self._local_reach(a, b, abs_delta))
+                    continue
             owner = np.repeat(np.arange(open_.size), pieces - 1)
             first = np.cumsum(pieces - 1) - (pieces - 1)
             rank = np.arange(owner.size) - first[owner] + 1
-            new_t = t[open_][owner] + rank * (np.diff(t)[open_] / pieces)[owner]
-            new_levels = self._margins(self._states(a, delta, new_t, ends, spread), thinner[owner])
+            new_t = t[open_][owner] + rank * (dt[open_] / pieces)[owner]
+            new_qs, new_low = self._states_d(a, delta, new_t, ends, spread)
+            new_levels = self._margins(new_qs, thinner[owner])
             if new_levels is None:
                 return False
             order = np.argsort(np.concatenate([t, new_t]), kind="stable")
             t = np.concatenate([t, new_t])[order]
             levels = np.concatenate([levels, new_levels])[order]
+            if low is not None and new_low is not None:
+                low = np.concatenate([low, new_low])[order]
 
     def _certified(self, a: np.ndarray, b: np.ndarray) -> None:
         if len(self.certified) >= CERTIFIED_MAX:
@@ -474,6 +549,18 @@ class CoupledChecker:
         hand from the law; ``ends`` are ``d`` at ``t = 0`` and ``t = 1``, ``spread`` how
         much ``d`` changes at most per unit of ``t`` (default :attr:`distance_rates`
         ``@ |delta|``)."""
+        return self._states_d(a, delta, t, ends, spread)[0]
+
+    def _states_d(
+        self,
+        a: np.ndarray,
+        delta: np.ndarray,
+        t: np.ndarray,
+        ends: tuple[float, float],
+        spread: float | None = None,
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """:meth:`_states`, and the lower bounds of ``d`` their hands were set from (exact
+        where ``d <= mga``; ``None`` for a fixed hand)."""
         if spread is None:
             spread = float(self.distance_rates @ np.abs(delta))
         # The hands of _set_hands, which bounds d from the motion's two ends: bracket the
@@ -481,8 +568,10 @@ class CoupledChecker:
         bracket = not (t[0] == 0.0 and t[-1] == 1.0)
         at = np.concatenate([[0.0], t, [1.0]]) if bracket else t
         qs = self._arm_qs(a + at[:, None] * delta)
-        self._set_hands(qs, at * spread, ends)
-        return qs[:, 1:-1] if bracket else qs
+        low = self._set_hands(qs, at * spread, ends)
+        if not bracket:
+            return qs, low
+        return qs[:, 1:-1], None if low is None else low[1:-1]
 
     def _margins(self, qs: np.ndarray, first: np.ndarray) -> np.ndarray | None:
         """For each column of ``qs``, the index of the widest margin, from ``first`` on

@@ -14,7 +14,7 @@ from recheck import recheck_plan
 import openup_ompl as oo
 from openup_ompl._resources import data_dir
 from openup_ompl.collision import CollisionWorld
-from openup_ompl.motion_bound import hand_rate
+from openup_ompl.motion_bound import body_bounds, hand_rate, local_reach
 from openup_ompl.validity import COARSE_LEVELS, CoupledChecker
 
 ompl_util.setLogLevel(ompl_util.LOG_ERROR)
@@ -122,6 +122,73 @@ def test_motion_spread_bounds_d_along_motions(robot_setup: oo.GraspPlanningSetup
     assert np.median(short) < 0.6
 
 
+def test_local_reach_bounds_every_point(robot_setup: oo.GraspPlanningSetup) -> None:
+    """The per-motion bound of the arm's share of the displacement, from the placements at
+    the motion's two ends, holds for every corner of every moving geometry's box between
+    any two states of the motion, whatever the (still) fingers' configuration; it is far
+    below the global weights' bound on short motions at the grasp (the retreat's)."""
+    checker = robot_setup.checker
+    robot = robot_setup.problem.robot
+    model, data = robot.model, robot.model.createData()
+    geometry_model = robot.collision_model
+    geometry_data = geometry_model.createData()
+    bodies = body_bounds(robot)
+    assert bodies is not None
+    moving = [(i, g) for i, g in enumerate(geometry_model.geometryObjects) if g.parentJoint != 0]
+    corners = []
+    for _, g in moving:
+        g.geometry.computeLocalAABB()
+        box = g.geometry.aabb_local
+        low, high = np.asarray(box.min_), np.asarray(box.max_)
+        corners.append(
+            np.array(
+                [
+                    [(high if bit else low)[i] for i, bit in enumerate(bits)]
+                    for bits in np.ndindex(2, 2, 2)
+                ]
+            )
+        )
+    arm_ids = [model.getJointId(n) for n in robot.spec.arm_joints]
+    grasp = robot_setup.goal.solutions[0]
+    rng = np.random.default_rng(5)
+    t = np.linspace(0.0, 1.0, 41)
+    short = []
+    for k in range(40):
+        centre = rng.uniform(robot.arm_lower, robot.arm_upper) if k % 4 == 3 else grasp
+        a = np.clip(centre + rng.normal(0.0, 0.02, centre.size), robot.arm_lower, robot.arm_upper)
+        b = np.clip(
+            a + rng.normal(0.0, (0.01, 0.05, 0.2, 0.4)[k % 4], a.size),
+            robot.arm_lower,
+            robot.arm_upper,
+        )
+        q = robot.full_q(a, rng.uniform(robot_setup.law.lower, robot_setup.law.upper))
+        frames = []
+        points = []
+        for x in t:
+            q[robot.arm_idx] = a + x * (b - a)
+            pin.forwardKinematics(model, data, q)
+            pin.updateGeometryPlacements(model, data, geometry_model, geometry_data)
+            if x in (0.0, 1.0):
+                frames.append(np.array([data.oMi[j].homogeneous for j in arm_ids]))
+            points.append(
+                np.concatenate(
+                    [
+                        box @ geometry_data.oMg[i].rotation.T + geometry_data.oMg[i].translation
+                        for (i, _), box in zip(moving, corners, strict=True)
+                    ]
+                )
+            )
+        abs_delta = np.abs(b - a)
+        bound = local_reach(bodies, frames[0], frames[1], abs_delta)
+        points_t = np.array(points)  # (len(t), points, 3)
+        for i in range(0, t.size, 5):
+            moved = np.linalg.norm(points_t - points_t[i], axis=2).max(axis=1)
+            assert np.all(moved <= bound * np.abs(t - t[i]) + 1e-9)
+        if k % 4 == 0:
+            short.append(bound / float(abs_delta @ checker.plateau_weights))
+    assert np.median(short) < 0.7
+
+
 def test_batched_hands_are_the_laws(robot_setup: oo.GraspPlanningSetup) -> None:
     """The batches of a motion check and of plan rows, whose states skip forward
     kinematics where the Lipschitz bound of ``d`` keeps them on the plateau, hold at every
@@ -150,6 +217,41 @@ def test_batched_hands_are_the_laws(robot_setup: oo.GraspPlanningSetup) -> None:
         below += bool(np.all(d <= robot_setup.law.mga))
         crossed += bool(np.any(d <= robot_setup.law.mga) and np.any(d > robot_setup.law.mga))
     assert below >= 3 and crossed >= 3
+
+
+def test_fingers_still_where_the_lower_bounds_of_d_say(
+    robot_setup: oo.GraspPlanningSetup,
+) -> None:
+    """The lower bounds of ``d`` a motion check sets its hands from are below the true
+    ``d`` (equal to it where ``d <= mga``), and over every interval that
+    :meth:`check_motion` counts without the fingers' share (the bounds at its two states
+    keep ``d`` above ``mga``) the law's hand stays the plateau's."""
+    checker = robot_setup.checker
+    robot = robot_setup.problem.robot
+    law = robot_setup.law
+    grasp = robot_setup.goal.solutions[0]
+    rng = np.random.default_rng(13)
+    still = 0
+    for k in range(30):
+        a = np.clip(grasp + rng.normal(0.0, 0.01, grasp.size), robot.arm_lower, robot.arm_upper)
+        b = np.clip(
+            a + rng.normal(0.0, (0.1, 0.4, 0.8)[k % 3], a.size), robot.arm_lower, robot.arm_upper
+        )
+        ends = (checker.normalized_distance(a), checker.normalized_distance(b))
+        checker._check_state(b)
+        checker.normalized_distance(a)
+        spread = checker._motion_spread(np.abs(b - a))
+        t = np.sort(np.concatenate([[0.0, 1.0], rng.uniform(0.0, 1.0, 30)]))
+        _, low = checker._states_d(a, b - a, t, ends, spread)
+        assert low is not None
+        d = np.array([checker.normalized_distance(a + x * (b - a)) for x in t])
+        assert np.all(low <= d + 1e-12)
+        np.testing.assert_allclose(low[d <= law.mga], d[d <= law.mga], rtol=0, atol=1e-12)
+        for i in np.flatnonzero(low[:-1] + low[1:] - spread * np.diff(t) > 2.0 * law.mga):
+            inside = np.linspace(t[i], t[i + 1], 12)
+            assert all(checker.normalized_distance(a + x * (b - a)) > law.mga for x in inside)
+            still += 1
+    assert still >= 20
 
 
 def test_hand_rate_bounds_finger_motion(robot_setup: oo.GraspPlanningSetup) -> None:
@@ -250,6 +352,42 @@ def test_accepted_motions_are_free_at_any_resolution(setup: oo.GraspPlanningSetu
         for t in np.linspace(0.0, 1.0, steps + 1):
             assert not exact.in_collision(checker.coupled_q(a + t * (b - a)))
     assert accepted >= 5
+
+
+def test_accepted_motions_near_the_grasp_are_free(robot_setup: oo.GraspPlanningSetup) -> None:
+    """Near the grasp, where the fingers close around the object, thin margins cut the
+    motions finest and the law moves the fingers over part of each motion only: a motion
+    the checker accepts is collision-free, unpadded, with the law's hand, at ten times the
+    resolution of the global bound (fingers included) everywhere along it."""
+    checker = robot_setup.checker
+    robot = robot_setup.problem.robot
+    exact = CollisionWorld(robot_setup.problem, num_threads=1)
+    # The palm's straight retreat from the grasp, 25 mm a step, out past mga.
+    retreat = [robot_setup.goal.solutions[0]]
+    step = -0.025 * robot.spec.approach
+    while len(retreat) < 12:
+        nxt = robot_setup.goal.ik.palm_step(retreat[-1], step)
+        if nxt is None:
+            break
+        retreat.append(nxt)
+    assert len(retreat) >= 6
+    rng = np.random.default_rng(11)
+    accepted = crossing = 0
+    for _ in range(24):
+        i, j = sorted(rng.choice(len(retreat), 2, replace=False))
+        a = retreat[i]
+        b = np.clip(retreat[j] + rng.normal(0.0, 0.02, a.size), robot.arm_lower, robot.arm_upper)
+        if not checker.check_motion(a, b):
+            continue
+        accepted += 1
+        steps = 10 * checker.segment_count(a, b)
+        d = []
+        for t in np.linspace(0.0, 1.0, steps + 1):
+            arm = a + t * (b - a)
+            assert not exact.in_collision(checker.coupled_q(arm))
+            d.append(checker.normalized_distance(arm))
+        crossing += min(d) <= robot_setup.law.mga < max(d)
+    assert accepted >= 6 and crossing >= 2
 
 
 def test_grasp_tighter_than_the_padding_is_planned(tmp_path: Path) -> None:
