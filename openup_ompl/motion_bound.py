@@ -113,31 +113,22 @@ def palm_reach(robot: Robot) -> np.ndarray:
     )
 
 
-def local_rate_terms(
-    robot: Robot, law: HandLaw
-) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+def local_rate_terms(robot: Robot, law: HandLaw) -> tuple[np.ndarray, np.ndarray] | None:
     """What :meth:`~openup_ompl.validity.CoupledChecker.check_motion` needs to bound how
     fast ``d`` changes along one motion more tightly than :func:`distance_rates` (``None``
     for an arm with a prismatic joint, where the global rates are used).
 
-    Two bounds of the palm's speed along a straight motion ``q(t) = a + t (b - a)``,
-    ``t`` in [0, 1], for revolute joints (the axis ``w_i`` of joint ``i`` through its
-    origin ``o_i``; the palm at ``p``):
-
-    - per joint: joint ``i`` moves the palm by at most ``|p - o_i|`` per radian, and
-      along the motion ``|p - o_i|`` grows at most by what the joints between ``i`` and the
-      palm move the palm relative to joint ``i``: ``sum_j chain[i, j] |b_j - a_j|``;
-    - second order: ``d2p/dq_i dq_j = w_i x (w_j x (p - o_j))`` for ``i`` before ``j``
-      in the chain, of norm at most ``j``'s :func:`palm_reach`, so
-      ``|p''(t)| <= K = |b - a|^T second |b - a|``, so ``p'(t)`` differs from the mean
-      velocity ``p(b) - p(a)`` by at most ``K / 2`` (``|p'(t) - p'(s)| <= K |t - s|``,
-      averaged over ``s`` in [0, 1]): the palm's speed is at most ``|p(b) - p(a)| + K / 2``
-      all along.
+    Along a straight motion ``q(t) = a + t (b - a)``, ``t`` in [0, 1], of revolute joints
+    (the axis ``w_i`` of joint ``i`` through its origin ``o_i``; the palm at ``p``),
+    ``d2p/dq_i dq_j = w_i x (w_j x (p - o_j))`` for ``i`` before ``j`` in the chain, of
+    norm at most ``j``'s :func:`palm_reach`, so ``|p''(t)| <= K = |b - a|^T second
+    |b - a|``. Then ``p'(t)`` differs from the mean velocity ``p(b) - p(a)`` by at most
+    ``K / 2`` (``|p'(t) - p'(s)| <= K |t - s|``, averaged over ``s`` in [0, 1]): the
+    palm's speed is at most ``|p(b) - p(a)| + K / 2`` all along.
 
     Returns:
-        ``chain`` and ``second`` (arm joints x arm joints) [m per joint unit] and the
-        rotation term of :func:`distance_rates` (before the division by the start
-        distance).
+        ``second`` (arm joints x arm joints) [m per joint unit squared] and the rotation
+        term of :func:`distance_rates` (before the division by the start distance).
     """
     model = robot.model
     arm_ids = [model.getJointId(name) for name in robot.spec.arm_joints]
@@ -145,19 +136,16 @@ def local_rate_terms(
         return None
     reach = palm_reach(robot)
     n = len(arm_ids)
-    chain = np.zeros((n, n))
     second = np.zeros((n, n))
     for i, joint in enumerate(arm_ids):
         below = set(model.subtrees[joint])
         for j, other in enumerate(arm_ids):
-            if other in below and other != joint:
-                chain[i, j] = reach[j]
             if reach[i] > 0 and reach[j] > 0:
                 # The later joint of the two in the chain (both move the palm, so one
                 # lies below the other).
                 later = j if other in below else i
                 second[i, j] = reach[later]
-    return chain, second, _rotation_rates(robot, law)
+    return second, _rotation_rates(robot, law)
 
 
 def arm_weights(robot: Robot) -> np.ndarray:

@@ -252,31 +252,24 @@ class CoupledChecker:
         """How much ``d`` can change per unit of ``t`` along the motion ``a -> b`` with
         ``abs_delta = |b - a|`` (at most :attr:`distance_rates` ``@ abs_delta``). Call it
         right after :meth:`_check_state` of ``b`` and :meth:`normalized_distance` of ``a``:
-        it reads their forward kinematics from the finest and the first world's contexts.
+        it reads the palm's placements they left in the finest and the first world's
+        contexts.
 
-        The smaller of the two palm-speed bounds of
-        :func:`~openup_ompl.motion_bound.local_rate_terms`, from the palm's and the
-        joints' placements at the motion's ends. Near the grasp the palm is far closer to
-        the shoulder than the stretched arm's chain length that bounds
-        :attr:`distance_rates`, and a short motion moves it nearly straight: a 25 mm step
-        of the LWA3's retreat is bounded at 33 mm of palm motion instead of 200 mm, and
-        the fingers' share of its displacement bound shrinks with it.
+        The palm's speed bound of :func:`~openup_ompl.motion_bound.local_rate_terms`: its
+        displacement between the motion's ends plus half a bound of its acceleration. Near
+        the grasp a short motion moves the palm nearly straight: a 25 mm step of the LWA3's
+        retreat is bounded at 47 mm of palm motion instead of 180 mm, and the fingers'
+        share of its displacement bound shrinks with it.
         """
         spread = float(self.distance_rates @ abs_delta)
         if self._local_terms is None:
             return spread
-        chain, second, rotation = self._local_terms
-        data = self.world.context().data
-        palm_a = data.oMf[self._palm].translation.tolist()
+        second, rotation = self._local_terms
+        palm_a = self.world.context().data.oMf[self._palm].translation.tolist()
         palm_b = self.finest_world.context().data.oMf[self._palm].translation.tolist()
-        origins = data.oMi
-        r = np.asarray(
-            [math.dist(palm_a, origins[j].translation.tolist()) for j in self._arm_joint_ids]
-        )
         turn = float(rotation @ abs_delta)
-        per_joint = float((r + chain @ abs_delta) @ abs_delta)
         taylor = math.dist(palm_a, palm_b) + 0.5 * float(abs_delta @ second @ abs_delta)
-        return min(spread, (min(per_joint, taylor) + turn) * self._inv_start)
+        return min(spread, (taylor + turn) * self._inv_start)
 
     def _local_may_pay(self, abs_delta: np.ndarray, arm: float) -> bool:
         """Whether :meth:`_local_reach` may bound the arm's share well below ``arm`` (the
@@ -390,14 +383,23 @@ class CoupledChecker:
         data = self.world.context().data
         distance = self._palm_distance
         mga = self.law.mga
-        d = np.full(n, mga + 1.0)
         if ends is None:
-            d[0] = distance(data, qs[:, 0])
-            d[-1] = distance(data, qs[:, -1]) if n > 1 else d[0]
-        else:
-            d[0], d[-1] = ends
-        if n <= 2:
-            return d
+            first = distance(data, qs[:, 0])
+            ends = (first, distance(data, qs[:, -1]) if n > 1 else first)
+        if n <= ANCHOR_STRIDE + 2:
+            # A motion's few states: plain Python is faster than numpy's calls.
+            d0, d1 = ends
+            steps = path.tolist()
+            total = steps[-1]
+            out = [d0]
+            for k in range(1, n - 1):
+                low = max(d0 - steps[k], d1 - (total - steps[k]))
+                out.append(distance(data, qs[:, k]) if low <= mga else low)
+            if n > 1:
+                out.append(d1)
+            return np.array(out)
+        d = np.empty(n)
+        d[0], d[-1] = ends
         bound = np.maximum(d[0] - path, d[-1] - (path[-1] - path))
         d[1:-1] = bound[1:-1]
         need = np.flatnonzero(bound[1:-1] <= mga) + 1
