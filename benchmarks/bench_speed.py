@@ -13,7 +13,8 @@ to problem. It reports, per robot, planner and hand:
 - median state checks and IK calls per run (counts: the same for a seed on any machine);
 
 then the law's price (law / fixed-``w`` suite medians, and the median over problems of the
-per-problem ratio of medians), the targets of the speed issue against what was measured,
+per-problem ratio of medians; ``--fixed w b`` adds the fixed ``b`` preshape beside ``w``),
+the targets of the speed issue against what was measured,
 the ``openup-ompl plan`` command from process start to plan written (median of
 ``--cli-runs`` fresh processes on each robot's demo scene, with the import of the package
 alone beside it), and ``tests/recheck.py`` over every ``--recheck-every``-th plan.
@@ -47,7 +48,8 @@ from openup_ompl._resources import data_dir  # noqa: E402
 from openup_ompl.benchmark import default_problems_dir  # noqa: E402
 from openup_ompl.planning import check_planner  # noqa: E402
 
-HANDS = ("law", "fixed")
+#: The classical fixed preshapes the law is compared with by default (``--fixed``).
+FIXED = ("w",)
 #: The issue's targets: suite median [ms] of ikbirrt with the law, per robot.
 MEDIAN_TARGET_MS = {"panda": 15.0, "ur5_allegro": 100.0, "lwa3_sdh": 60.0}
 P95_TARGET_MS = {"panda": 100.0}
@@ -55,19 +57,30 @@ PRICE_TARGET = {"ikbirrt": 1.2, "rrtconnect": 1.3}
 WALL_TARGET = 1.5
 
 
+def hands_of(fixed: list[str]) -> list[str]:
+    """The compared hands: ``"law"`` and ``"fixed <preshape>"`` for each of ``fixed``."""
+    return ["law"] + [f"fixed {preshape}" for preshape in fixed]
+
+
 def run_suites(
-    robots: list[str], planners: list[str], seeds: int, time_limit: float, recheck_every: int
+    robots: list[str],
+    planners: list[str],
+    seeds: int,
+    time_limit: float,
+    recheck_every: int,
+    fixed: list[str],
 ) -> tuple[list[dict[str, Any]], list[Any]]:
     """Every run's record, and the plans kept for the re-check."""
+    hands = hands_of(fixed)
     setups: dict[tuple[str, str], oo.GraspPlanningSetup] = {}
     for robot in robots:
         for path in sorted(default_problems_dir(robot).glob("*.toml")):
             problem = oo.load_scene(path)
-            for hand in HANDS:
+            for hand in hands:
                 setups[(f"{robot}.{path.stem}", hand)] = oo.GraspPlanningSetup(
-                    problem, fixed_hand=None if hand == "law" else "w"
+                    problem, fixed_hand=None if hand == "law" else hand.split()[1]
                 )
-    variants = [(hand, planner) for hand in HANDS for planner in planners]
+    variants = [(hand, planner) for hand in hands for planner in planners]
     problems = sorted({name for name, _ in setups})
     runs: list[dict[str, Any]] = []
     kept: list[Any] = []
@@ -122,37 +135,41 @@ def _cell(runs: list[dict[str, Any]]) -> dict[str, Any]:
     }
 
 
-def summarize(runs: list[dict[str, Any]], robots: list[str], planners: list[str]) -> dict:
+def summarize(
+    runs: list[dict[str, Any]], robots: list[str], planners: list[str], fixed: list[str]
+) -> dict:
+    hands = hands_of(fixed)
     cells = {}
     prices = {}
     for robot in robots:
         for planner in planners:
-            for hand in HANDS:
+            for hand in hands:
                 chosen = [
                     r
                     for r in runs
                     if (r["robot"], r["planner"], r["hand"]) == (robot, planner, hand)
                 ]
                 cells[(robot, planner, hand)] = _cell(chosen)
-            per_problem = []
-            for problem in sorted({r["problem"] for r in runs if r["robot"] == robot}):
-                medians = {
-                    hand: _common.median(
-                        [
-                            r["solve_s"]
-                            for r in runs
-                            if (r["problem"], r["planner"], r["hand"]) == (problem, planner, hand)
-                        ]
-                    )
-                    for hand in HANDS
-                }
-                per_problem.append(medians["law"] / medians["fixed"])
-            law, fixed = cells[(robot, planner, "law")], cells[(robot, planner, "fixed")]
-            prices[(robot, planner)] = {
-                "suite": law["median_ms"] / fixed["median_ms"],
-                "per_problem_median": _common.median(per_problem),
-                "per_problem_max": max(per_problem),
+            problems = sorted({r["problem"] for r in runs if r["robot"] == robot})
+            medians = {
+                (problem, hand): _common.median(
+                    [
+                        r["solve_s"]
+                        for r in runs
+                        if (r["problem"], r["planner"], r["hand"]) == (problem, planner, hand)
+                    ]
+                )
+                for problem in problems
+                for hand in hands
             }
+            law = cells[(robot, planner, "law")]
+            for hand in hands[1:]:
+                per_problem = [medians[(p, "law")] / medians[(p, hand)] for p in problems]
+                prices[(robot, planner, hand)] = {
+                    "suite": law["median_ms"] / cells[(robot, planner, hand)]["median_ms"],
+                    "per_problem_median": _common.median(per_problem),
+                    "per_problem_max": max(per_problem),
+                }
     return {"cells": cells, "prices": prices}
 
 
@@ -218,6 +235,13 @@ def main() -> None:
     parser.add_argument("--time", type=float, default=5.0, help="seconds per solve (5)")
     parser.add_argument("--recheck-every", type=int, default=5, help="re-check every Nth plan")
     parser.add_argument("--cli-runs", type=int, default=3, help="fresh processes per robot")
+    parser.add_argument(
+        "--fixed",
+        nargs="+",
+        default=list(FIXED),
+        choices=["c", "b", "w"],
+        help="fixed preshapes to compare the law with (default w; the targets are for w)",
+    )
     parser.add_argument("--json", metavar="PATH", help="also write the results as JSON")
     args = parser.parse_args()
     if args.seeds < 1 or args.time <= 0 or args.recheck_every < 1 or args.cli_runs < 0:
@@ -231,8 +255,10 @@ def main() -> None:
     ou.setLogLevel(ou.LogLevel.LOG_NONE)
     info = _common.machine_info()
 
-    runs, kept = run_suites(args.robots, args.planners, args.seeds, args.time, args.recheck_every)
-    summary = summarize(runs, args.robots, args.planners)
+    runs, kept = run_suites(
+        args.robots, args.planners, args.seeds, args.time, args.recheck_every, args.fixed
+    )
+    summary = summarize(runs, args.robots, args.planners, args.fixed)
     checked, passed = _common.recheck_plans(kept)
     floors = {robot: prefilter_floor(robot) for robot in args.robots}
     commands = {
@@ -255,7 +281,7 @@ def main() -> None:
             [
                 robot,
                 planner,
-                "law" if hand == "law" else "fixed `w`",
+                "law" if hand == "law" else f"fixed `{hand.split()[1]}`",
                 f"{cell['solved']}/{cell['runs']}",
                 f"{cell['median_ms']:.1f}",
                 f"{cell['p95_ms']:.0f}",
@@ -286,25 +312,27 @@ def main() -> None:
         [
             robot,
             planner,
+            f"`{hand.split()[1]}`",
             f"{price['suite']:.2f}",
             f"{price['per_problem_median']:.2f}",
             f"{price['per_problem_max']:.2f}",
-            f"≤ {PRICE_TARGET.get(planner, 1.2):g}",
+            f"≤ {PRICE_TARGET.get(planner, 1.2):g}" if hand == "fixed w" else "",
         ]
-        for (robot, planner), price in summary["prices"].items()
+        for (robot, planner, hand), price in summary["prices"].items()
     ]
     print(
         _common.markdown_table(
             [
                 "robot",
                 "planner",
+                "against",
                 "law / fixed, suite medians",
                 "per problem, median",
                 "per problem, max",
                 "target",
             ],
             rows,
-            left=2,
+            left=3,
         )
     )
     print()
@@ -344,7 +372,10 @@ def main() -> None:
                 {"robot": k[0], "planner": k[1], "hand": k[2], **v}
                 for k, v in summary["cells"].items()
             ],
-            "prices": [{"robot": k[0], "planner": k[1], **v} for k, v in summary["prices"].items()],
+            "prices": [
+                {"robot": k[0], "planner": k[1], "against": k[2], **v}
+                for k, v in summary["prices"].items()
+            ],
             "commands": commands,
             "prefilter_floor": floors,
             "recheck": {"checked": checked, "passed": passed},
