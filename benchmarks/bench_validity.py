@@ -333,7 +333,7 @@ def bench_motions(setup: openup_ompl.GraspPlanningSetup, args: argparse.Namespac
                 before = owner.states_checked
                 verdicts[name].append(bool(method(a, b)))
                 counts[name].append(owner.states_checked - before)
-        for name in ("batch", "batch1"):
+        for name in ("batch",):
             mismatch = sum(x != y for x, y in zip(verdicts[name], verdicts["serial"], strict=True))
             assert mismatch == 0, f"length {length}: {mismatch} {name} motion verdicts differ"
         valid = np.array(verdicts["batch"])
@@ -379,7 +379,7 @@ def bench_motions(setup: openup_ompl.GraspPlanningSetup, args: argparse.Namespac
                     "us_per_state": 1e6 * total / states,
                 }
             serial = per_motion["serial"][:, mask].sum(axis=1)
-            for name in ("batch", "batch1"):
+            for name in ("batch",):
                 ratios = serial / per_motion[name][:, mask].sum(axis=1)
                 stats[f"serial_over_{name}_time"] = float(np.median(ratios))
             stats["motions"] = int(mask.sum())
@@ -482,7 +482,6 @@ def report(info: dict, states: dict, motions: list[dict]) -> str:
         out.append("")
     labels = {
         "batch": f"batch, {motions[0]['threads'] if motions else '?'} threads (`check_motion`)",
-        "batch1": "batch, 1 thread (`check_motion`)",
         "serial": "one thread: the batch back end loops over the states one by one",
     }
     rows = []
