@@ -46,6 +46,32 @@ def _without_warm_start(geometry_data: pin.GeometryData) -> pin.GeometryData:
     return geometry_data
 
 
+def self_margins(problem: Problem, geometry_model: pin.GeometryModel, padding: float) -> np.ndarray:
+    """Security margin [m] of each collision pair of a world padded by ``padding``: for a
+    self-collision pair that arm joints move relative to each other, its factor of
+    :func:`~openup_ompl.motion_bound.self_pair_factors` (at most 2) times the padding; 0
+    for the rest.
+
+    Environment shapes are grown by the padding, so a checked state keeps every robot
+    point ``padding`` away from them; two robot points close in on each other by at most
+    the sum of their moves, so self-collision pairs keep up to twice the padding, and a
+    motion check covers self-collision between its states as it covers the environment.
+    Pairs inside the hand (moved relative to each other only by the fingers) keep 0.
+    """
+    from openup_ompl.motion_bound import self_pair_factors  # noqa: PLC0415 - import cycle
+
+    if padding <= 0.0:
+        return np.zeros(len(geometry_model.collisionPairs))
+    return padding * self_pair_factors(problem.robot, geometry_model)
+
+
+def _with_margins(geometry_data: pin.GeometryData, margins: np.ndarray) -> pin.GeometryData:
+    """Set each collision pair's security margin (see :func:`self_margins`)."""
+    for request, margin in zip(geometry_data.collisionRequests, margins.tolist(), strict=True):
+        request.security_margin = margin
+    return geometry_data
+
+
 @dataclass
 class ThreadContext:
     """One thread's scratch: Pinocchio data, Coal data and manager, a full ``q``."""
@@ -105,6 +131,8 @@ class CollisionWorld:
         self.padding = float(padding)
         self.model = problem.robot.model
         self.geometry_model = build_collision_model(problem, environment, self.padding)
+        #: Each collision pair's security margin (:func:`self_margins`).
+        self.margins = self_margins(problem, self.geometry_model, self.padding)
         self.num_threads = max(1, num_threads or len(os.sched_getaffinity(0)))
         self._local = threading.local()
         self._pool: Any = None
@@ -116,7 +144,9 @@ class CollisionWorld:
             return self._local.context  # type: ignore[no-any-return]
         except AttributeError:
             data = self.model.createData()
-            geometry_data = _without_warm_start(self.geometry_model.createData())
+            geometry_data = _with_margins(
+                _without_warm_start(self.geometry_model.createData()), self.margins
+            )
             manager = _Manager(self.model, self.geometry_model, geometry_data)
             robot = self.problem.robot
             context = ThreadContext(
@@ -156,7 +186,7 @@ class CollisionWorld:
             if self._pool is None:
                 self._pool = _ManagerPool(self.model, self.geometry_model, self.num_threads)
                 for geometry_data in self._pool.getGeometryDatas():
-                    _without_warm_start(geometry_data)
+                    _with_margins(_without_warm_start(geometry_data), self.margins)
             return np.asarray(
                 pin.computeCollisionsInParallel(
                     self.num_threads, self._pool, qs, True, stop_at_first

@@ -313,3 +313,71 @@ def local_reach(
     curvature = bounds.second @ np.outer(abs_delta, abs_delta).ravel()
     speed = np.sqrt((moved * moved).sum(axis=1)) + bounds.radii * spin + 0.5 * curvature
     return float(speed.max())
+
+
+def _geometry_reach(robot: Robot, joint_id: int, geometry: pin.GeometryObject) -> float:
+    """Upper bound [m] on the distance from a joint's origin to any point of one geometry
+    below it, over every configuration."""
+    model = robot.model
+    shape = geometry.geometry
+    shape.computeLocalAABB()
+    extent = (
+        float(np.linalg.norm(geometry.placement.translation))
+        + float(np.linalg.norm(shape.aabb_center))
+        + float(shape.aabb_radius)
+    )
+    return (
+        _chain_length(model, joint_id, geometry.parentJoint)
+        + _travel(model, geometry.parentJoint)
+        + extent
+    )
+
+
+def self_pair_factors(robot: Robot, geometry_model: pin.GeometryModel) -> np.ndarray:
+    """Per collision pair, how many times a world's padding its self-collision margin must
+    be for a motion check to cover self-collision between its states (0 for pairs against
+    the environment, and for pairs inside the hand, whose margins are not kept).
+
+    Two points of the robot close in on each other at most by the sum of their moves, so
+    twice the padding always suffices. Only the joints between the two geometries move
+    them relative to each other: joint ``j`` at ``R_j`` per radian (its distance to the
+    geometry it moves), against the global weight ``W_j`` the motion check's bound counts
+    for it. With ``kappa = max_j R_j / W_j`` over the arm joints between them, their
+    relative speed is at most ``kappa`` times the arm's global bound, plus the fingers'
+    share where finger joints lie between them; the motion check never tightens the arm's
+    share below half its global bound, so ``2 kappa`` (at least 1 with fingers between)
+    suffices too. Neighbouring links of one wrist, a few centimetres apart in every
+    configuration, then keep a fraction of the padding instead of twice it.
+    """
+    model = robot.model
+    arm = [model.getJointId(name) for name in robot.spec.arm_joints]
+    arm_set = set(arm)
+    weights = dict(zip(arm, arm_weights(robot).tolist(), strict=True))
+    hand = {model.getJointId(name) for name in robot.spec.hand_joints}
+    n_robot = robot.collision_model.ngeoms
+    objects = geometry_model.geometryObjects
+
+    def chain(joint: int) -> list[int]:
+        joints = []
+        while joint != 0:
+            joints.append(joint)
+            joint = model.parents[joint]
+        return joints
+
+    factors = np.zeros(len(geometry_model.collisionPairs))
+    for k, pair in enumerate(geometry_model.collisionPairs):
+        if pair.first >= n_robot or pair.second >= n_robot:
+            continue
+        first, second = objects[pair.first], objects[pair.second]
+        chains = (set(chain(first.parentJoint)), set(chain(second.parentJoint)))
+        between = chains[0] ^ chains[1]
+        moving = between & arm_set
+        if not moving:
+            continue  # inside the hand
+        kappa = 0.0
+        for joint in moving:
+            moved = first if joint in chains[0] else second
+            kappa = max(kappa, _geometry_reach(robot, joint, moved) / weights[joint])
+        floor = 1.0 if between & hand else 0.0
+        factors[k] = min(2.0, max(2.0 * kappa, floor))
+    return factors

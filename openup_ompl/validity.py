@@ -54,6 +54,10 @@ COARSE_LEVELS = 3
 #: these, reading the placements costs more than the states it would spare.
 LOCAL_REACH_MIN_INTERVALS = 8
 LOCAL_REACH_MIN_STATES = 8
+#: The arm's share of a motion's bound is never tightened below this fraction of its
+#: global bound: self-collision margins rely on it
+#: (:func:`~openup_ompl.motion_bound.self_pair_factors`).
+ARM_TIGHTEN_FLOOR = 0.5
 #: Accepted motions remembered by :attr:`CoupledChecker.certified` at most.
 CERTIFIED_MAX = 200_000
 
@@ -473,7 +477,7 @@ class CoupledChecker:
         # motion, else only if the first pass does not settle it.
         tighten = self._bodies is not None and self._local_may_pay(abs_delta, arm)
         if tighten and arm + fingers * window > LOCAL_REACH_MIN_INTERVALS * 2.0 * pads[0]:
-            arm = min(arm, self._local_reach(a, b, abs_delta))
+            arm = min(arm, max(self._local_reach(a, b, abs_delta), ARM_TIGHTEN_FLOOR * arm))
             tighten = False
         if pads[-1] <= 0.0:  # no padding: plain resolution checks, no guarantee
             n = max(1, math.ceil((arm + fingers) / self.resolution))
@@ -510,7 +514,7 @@ class CoupledChecker:
             if tighten:
                 tighten = False
                 if int(pieces.sum()) - pieces.size >= LOCAL_REACH_MIN_STATES:
-                    arm = min(arm, self._local_reach(a, b, abs_delta))
+                    arm = min(arm, max(self._local_reach(a, b, abs_delta), ARM_TIGHTEN_FLOOR * arm))
                     continue
             owner = np.repeat(np.arange(open_.size), pieces - 1)
             first = np.cumsum(pieces - 1) - (pieces - 1)

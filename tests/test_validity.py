@@ -14,7 +14,7 @@ from recheck import recheck_plan
 import openup_ompl as oo
 from openup_ompl._resources import data_dir
 from openup_ompl.collision import CollisionWorld
-from openup_ompl.motion_bound import body_bounds, hand_rate, local_reach
+from openup_ompl.motion_bound import body_bounds, hand_rate, local_reach, self_pair_factors
 from openup_ompl.validity import COARSE_LEVELS, CoupledChecker
 
 ompl_util.setLogLevel(ompl_util.LOG_ERROR)
@@ -187,6 +187,90 @@ def test_local_reach_bounds_every_point(robot_setup: oo.GraspPlanningSetup) -> N
         if k % 4 == 0:
             short.append(bound / float(abs_delta @ checker.plateau_weights))
     assert np.median(short) < 0.7
+
+
+def test_self_pair_margins_cover_the_relative_motion(robot_setup: oo.GraspPlanningSetup) -> None:
+    """For every self-collision pair with a margin, the distance between any corner of one
+    geometry's box and any corner of the other's changes along a motion no faster than the
+    pair's factor times the arm's bound the motion check spaces its states by (the local
+    bound, never below half the global one): a state clear by the pair's margin keeps the
+    pair apart over the interval it covers. Pairs inside the hand have no margin."""
+    checker = robot_setup.checker
+    robot = robot_setup.problem.robot
+    model, data = robot.model, robot.model.createData()
+    geometry_model = checker.world.geometry_model
+    geometry_data = geometry_model.createData()
+    factors = self_pair_factors(robot, geometry_model)
+    n_robot = robot.collision_model.ngeoms
+    pairs = [k for k, f in enumerate(factors) if f > 0]
+    assert pairs and all(f <= 2.0 for f in factors)
+    arm_joints = {model.getJointId(n) for n in robot.spec.arm_joints}
+    for k, pair in enumerate(geometry_model.collisionPairs):
+        if pair.second < n_robot and factors[k] == 0:
+            # No margin only inside the hand: no arm joint between the two geometries.
+            chains = [
+                set(model.supports[geometry_model.geometryObjects[g].parentJoint])
+                for g in (pair.first, pair.second)
+            ]
+            assert not (chains[0] ^ chains[1]) & arm_joints
+    corners = {}
+    for g in {
+        i
+        for k in pairs
+        for i in (geometry_model.collisionPairs[k].first, geometry_model.collisionPairs[k].second)
+    }:
+        shape = geometry_model.geometryObjects[g].geometry
+        shape.computeLocalAABB()
+        low, high = np.asarray(shape.aabb_local.min_), np.asarray(shape.aabb_local.max_)
+        corners[g] = np.array(
+            [
+                [(high if bit else low)[i] for i, bit in enumerate(bits)]
+                for bits in np.ndindex(2, 2, 2)
+            ]
+        )
+    bodies = body_bounds(robot)
+    assert bodies is not None
+    arm_ids = [model.getJointId(n) for n in robot.spec.arm_joints]
+    grasp = robot_setup.goal.solutions[0]
+    rng = np.random.default_rng(17)
+    t = np.linspace(0.0, 1.0, 21)
+    worst = 0.0
+    for k in range(24):
+        centre = rng.uniform(robot.arm_lower, robot.arm_upper) if k % 2 else grasp
+        a = np.clip(centre + rng.normal(0.0, 0.05, centre.size), robot.arm_lower, robot.arm_upper)
+        b = np.clip(
+            a + rng.normal(0.0, (0.05, 0.2, 0.6)[k % 3], a.size), robot.arm_lower, robot.arm_upper
+        )
+        q = robot.full_q(a, rng.uniform(robot_setup.law.lower, robot_setup.law.upper))
+        points, frames = [], []
+        for x in t:
+            q[robot.arm_idx] = a + x * (b - a)
+            pin.forwardKinematics(model, data, q)
+            pin.updateGeometryPlacements(model, data, geometry_model, geometry_data)
+            if x in (0.0, 1.0):
+                frames.append(np.array([data.oMi[j].homogeneous for j in arm_ids]))
+            points.append(
+                {
+                    g: c @ geometry_data.oMg[g].rotation.T + geometry_data.oMg[g].translation
+                    for g, c in corners.items()
+                }
+            )
+        abs_delta = np.abs(b - a)
+        arm = float(abs_delta @ checker.plateau_weights)
+        spacing = min(arm, max(local_reach(bodies, frames[0], frames[1], abs_delta), 0.5 * arm))
+        for p in pairs:
+            pair = geometry_model.collisionPairs[p]
+            gaps = np.array(
+                [
+                    np.linalg.norm(s[pair.first][:, None] - s[pair.second][None], axis=2)
+                    for s in points
+                ]
+            )  # (len(t), 8, 8)
+            change = np.abs(gaps[:, None] - gaps[None, :]).max(axis=(2, 3))
+            allowed = factors[p] * spacing * np.abs(t[:, None] - t[None, :])
+            worst = max(worst, float((change / np.maximum(allowed, 1e-15))[allowed > 0].max()))
+            assert np.all(change <= allowed + 1e-9)
+    assert worst > 0.05  # the bound is not vacuous
 
 
 def test_batched_hands_are_the_laws(robot_setup: oo.GraspPlanningSetup) -> None:
