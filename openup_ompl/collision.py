@@ -12,6 +12,7 @@ from __future__ import annotations
 import os
 import threading
 import warnings
+import weakref
 from dataclasses import dataclass
 from typing import Any
 
@@ -60,9 +61,21 @@ def self_margins(problem: Problem, geometry_model: pin.GeometryModel, padding: f
     """
     from openup_ompl.motion_bound import self_pair_factors  # noqa: PLC0415 - import cycle
 
+    margins = np.zeros(len(geometry_model.collisionPairs))
     if padding <= 0.0:
-        return np.zeros(len(geometry_model.collisionPairs))
-    return padding * self_pair_factors(problem.robot, geometry_model)
+        return margins
+    robot = problem.robot
+    # The robot's own pairs come first (build_collision_model copies its model), the same
+    # for every world of the robot: computed once per robot.
+    factors = _FACTORS.get(robot)
+    if factors is None:
+        factors = _FACTORS[robot] = self_pair_factors(robot, robot.collision_model)
+    margins[: factors.size] = padding * factors
+    return margins
+
+
+#: Self-collision factors per robot (see :func:`self_margins`).
+_FACTORS: weakref.WeakKeyDictionary[Any, np.ndarray] = weakref.WeakKeyDictionary()
 
 
 def _with_margins(geometry_data: pin.GeometryData, margins: np.ndarray) -> pin.GeometryData:
@@ -91,8 +104,8 @@ def build_collision_model(
     Pairs: the robot's self-collision pairs (already pruned by its SRDF) and every robot
     geometry against every environment shape. Environment shapes never test each other.
     Each environment shape is grown by ``padding`` [m] plus the robot's own
-    ``spec.padding`` on every side (the robot's is never halved; self-collision is not
-    padded).
+    ``spec.padding`` on every side (the robot's is never halved). Self-collision pairs get
+    their margins from the world (:func:`self_margins`), not from the geometry.
     """
     robot = problem.robot
     model = robot.collision_model.copy()

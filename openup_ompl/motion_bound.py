@@ -356,28 +356,23 @@ def self_pair_factors(robot: Robot, geometry_model: pin.GeometryModel) -> np.nda
     hand = {model.getJointId(name) for name in robot.spec.hand_joints}
     n_robot = robot.collision_model.ngeoms
     objects = geometry_model.geometryObjects
-
-    def chain(joint: int) -> list[int]:
-        joints = []
-        while joint != 0:
-            joints.append(joint)
-            joint = model.parents[joint]
-        return joints
+    chains = [set(model.supports[g.parentJoint]) - {0} for g in objects[:n_robot]]
+    reach: dict[tuple[int, int], float] = {}  # (joint, geometry) -> _geometry_reach
 
     factors = np.zeros(len(geometry_model.collisionPairs))
     for k, pair in enumerate(geometry_model.collisionPairs):
         if pair.first >= n_robot or pair.second >= n_robot:
             continue
-        first, second = objects[pair.first], objects[pair.second]
-        chains = (set(chain(first.parentJoint)), set(chain(second.parentJoint)))
-        between = chains[0] ^ chains[1]
+        between = chains[pair.first] ^ chains[pair.second]
         moving = between & arm_set
         if not moving:
             continue  # inside the hand
         kappa = 0.0
         for joint in moving:
-            moved = first if joint in chains[0] else second
-            kappa = max(kappa, _geometry_reach(robot, joint, moved) / weights[joint])
+            moved = pair.first if joint in chains[pair.first] else pair.second
+            if (joint, moved) not in reach:
+                reach[(joint, moved)] = _geometry_reach(robot, joint, objects[moved])
+            kappa = max(kappa, reach[(joint, moved)] / weights[joint])
         floor = 1.0 if between & hand else 0.0
         factors[k] = min(2.0, max(2.0 * kappa, floor))
     return factors
