@@ -48,7 +48,7 @@ REFINE_LEVELS = 3
 #: :meth:`CoupledChecker.check_motion`).
 COARSE_LEVELS = 3
 #: A motion's displacement bound is tightened from its two ends' placements
-#: (:func:`~openup_ompl.motion_bound.local_reach`, about 30 us) when the global weights'
+#: (:func:`~openup_ompl.motion_bound.local_reach`, about 25 us) when the global weights'
 #: bound spans more than this many of the first round's intervals, or when the first round
 #: leaves intervals that need at least ``LOCAL_REACH_MIN_STATES`` more states: below
 #: these, reading the placements costs more than the states it would spare.
@@ -277,11 +277,11 @@ class CoupledChecker:
 
     def _local_may_pay(self, abs_delta: np.ndarray, arm: float) -> bool:
         """Whether :meth:`_local_reach` may bound the arm's share well below ``arm`` (the
-        global bound): its curvature term alone, known without forward kinematics, stays
-        under half of it."""
+        global bound): its curvature term, known without forward kinematics, stays under
+        :data:`ARM_TIGHTEN_FLOOR` times it."""
         assert self._bodies is not None
         curvature = self._bodies.second @ np.outer(abs_delta, abs_delta).ravel()
-        return 0.5 * float(curvature.max()) < 0.5 * arm
+        return 0.5 * float(curvature.max()) < ARM_TIGHTEN_FLOOR * arm
 
     def _local_reach(self, a: np.ndarray, b: np.ndarray, abs_delta: np.ndarray) -> float:
         """The arm's share of the displacement bound of the motion ``a -> b``, from the arm
