@@ -369,6 +369,9 @@ def self_pair_factors(robot: Robot, geometry_model: pin.GeometryModel) -> np.nda
             continue  # inside the hand
         kappa = 0.0
         for joint in moving:
+            if is_prismatic(model.joints[joint]):
+                kappa = max(kappa, 1.0)  # moves every point below it as much as its weight
+                continue
             moved = pair.first if joint in chains[pair.first] else pair.second
             if (joint, moved) not in reach:
                 reach[(joint, moved)] = _geometry_reach(robot, joint, objects[moved])
