@@ -20,6 +20,7 @@ import coal
 import numpy as np
 import pinocchio as pin
 
+from openup_ompl.motion_bound import self_pair_factors
 from openup_ompl.scene import Problem, Shape
 
 # Coal's naive manager (AABB test on every pair, then the narrow phase) measured fastest
@@ -59,8 +60,6 @@ def self_margins(problem: Problem, geometry_model: pin.GeometryModel, padding: f
     motion check covers self-collision between its states as it covers the environment.
     Pairs inside the hand (moved relative to each other only by the fingers) keep 0.
     """
-    from openup_ompl.motion_bound import self_pair_factors  # noqa: PLC0415 - import cycle
-
     margins = np.zeros(len(geometry_model.collisionPairs))
     if padding <= 0.0:
         return margins

@@ -45,28 +45,35 @@ def _chain_length(model: pin.Model, ancestor: int, joint_id: int) -> float:
     return length
 
 
+def _geometry_reach(robot: Robot, joint_id: int, geometry: pin.GeometryObject) -> float:
+    """Upper bound [m] on the distance from a joint's origin to any point of one geometry
+    below it, over every configuration."""
+    model = robot.model
+    shape = geometry.geometry
+    shape.computeLocalAABB()
+    extent = (
+        float(np.linalg.norm(geometry.placement.translation))
+        + float(np.linalg.norm(shape.aabb_center))
+        + float(shape.aabb_radius)
+    )
+    return (
+        _chain_length(model, joint_id, geometry.parentJoint)
+        + _travel(model, geometry.parentJoint)
+        + extent
+    )
+
+
 def joint_reach(robot: Robot, joint_id: int) -> float:
     """Upper bound [m] on the distance from a joint's origin to any robot point it moves."""
-    model = robot.model
-    subtree = set(model.subtrees[joint_id])
-    reach = 0.0
-    for geometry in robot.collision_model.geometryObjects:
-        if geometry.parentJoint not in subtree:
-            continue
-        shape = geometry.geometry
-        shape.computeLocalAABB()
-        extent = (
-            float(np.linalg.norm(geometry.placement.translation))
-            + float(np.linalg.norm(shape.aabb_center))
-            + float(shape.aabb_radius)
-        )
-        reach = max(
-            reach,
-            _chain_length(model, joint_id, geometry.parentJoint)
-            + _travel(model, geometry.parentJoint)
-            + extent,
-        )
-    return reach
+    subtree = set(robot.model.subtrees[joint_id])
+    return max(
+        (
+            _geometry_reach(robot, joint_id, geometry)
+            for geometry in robot.collision_model.geometryObjects
+            if geometry.parentJoint in subtree
+        ),
+        default=0.0,
+    )
 
 
 def joint_weight(robot: Robot, joint_id: int) -> float:
@@ -238,14 +245,7 @@ def body_bounds(robot: Robot) -> BodyBounds | None:
         else:
             first = path[-1]
             anchor = np.asarray(model.jointPlacements[first].translation)
-            extent = (
-                _chain_length(model, first, geometry.parentJoint)
-                + _travel(model, first)
-                + _travel(model, geometry.parentJoint)
-                + float(np.linalg.norm(geometry.placement.translation))
-                + float(np.linalg.norm(shape.aabb_center))
-                + float(shape.aabb_radius)
-            )
+            extent = _geometry_reach(robot, first, geometry) + _travel(model, first)
         members.setdefault(joint, []).append((np.asarray(anchor, dtype=float), extent))
     bodies = [j for j in arm_ids if j in members]
     if not bodies:
@@ -313,24 +313,6 @@ def local_reach(
     curvature = bounds.second @ np.outer(abs_delta, abs_delta).ravel()
     speed = np.sqrt((moved * moved).sum(axis=1)) + bounds.radii * spin + 0.5 * curvature
     return float(speed.max())
-
-
-def _geometry_reach(robot: Robot, joint_id: int, geometry: pin.GeometryObject) -> float:
-    """Upper bound [m] on the distance from a joint's origin to any point of one geometry
-    below it, over every configuration."""
-    model = robot.model
-    shape = geometry.geometry
-    shape.computeLocalAABB()
-    extent = (
-        float(np.linalg.norm(geometry.placement.translation))
-        + float(np.linalg.norm(shape.aabb_center))
-        + float(shape.aabb_radius)
-    )
-    return (
-        _chain_length(model, joint_id, geometry.parentJoint)
-        + _travel(model, geometry.parentJoint)
-        + extent
-    )
 
 
 def self_pair_factors(robot: Robot, geometry_model: pin.GeometryModel) -> np.ndarray:

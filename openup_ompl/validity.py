@@ -283,21 +283,26 @@ class CoupledChecker:
         curvature = self._bodies.second @ np.outer(abs_delta, abs_delta).ravel()
         return 0.5 * float(curvature.max()) < ARM_TIGHTEN_FLOOR * arm
 
-    def _local_reach(self, a: np.ndarray, b: np.ndarray, abs_delta: np.ndarray) -> float:
-        """The arm's share of the displacement bound of the motion ``a -> b``, from the arm
-        joints' placements at its two ends (:func:`~openup_ompl.motion_bound.local_reach`),
-        computed in the finest world's context (whose next check recomputes it)."""
+    def _local_reach(
+        self, a: np.ndarray, b: np.ndarray, abs_delta: np.ndarray, arm: float
+    ) -> float:
+        """The arm's share of the displacement bound of the motion ``a -> b``, tightened
+        from ``arm`` (the global bound) by the arm joints' placements at its two ends
+        (:func:`~openup_ompl.motion_bound.local_reach`), never below
+        :data:`ARM_TIGHTEN_FLOOR` times ``arm``; computed in the finest world's context
+        (whose next check recomputes it)."""
         assert self._bodies is not None
         ids = self._arm_joint_ids
         context = self.finest_world.context()
         q, data, model = context.q, context.data, self._model
         frames = []
-        for arm in (a, b):
-            q[self._arm_sel] = arm
+        for end in (a, b):
+            q[self._arm_sel] = end
             pin.forwardKinematics(model, data, q)
             placements = data.oMi.tolist()  # one call, not one per joint
             frames.append(np.array([placements[j].homogeneous for j in ids]))
-        return local_reach(self._bodies, frames[0], frames[1], abs_delta)
+        local = local_reach(self._bodies, frames[0], frames[1], abs_delta)
+        return min(arm, max(local, ARM_TIGHTEN_FLOOR * arm))
 
     def segment_count(
         self,
@@ -477,11 +482,11 @@ class CoupledChecker:
         # motion, else only if the first pass does not settle it.
         tighten = self._bodies is not None and self._local_may_pay(abs_delta, arm)
         if tighten and arm + fingers * window > LOCAL_REACH_MIN_INTERVALS * 2.0 * pads[0]:
-            arm = min(arm, max(self._local_reach(a, b, abs_delta), ARM_TIGHTEN_FLOOR * arm))
+            arm = self._local_reach(a, b, abs_delta, arm)
             tighten = False
         if pads[-1] <= 0.0:  # no padding: plain resolution checks, no guarantee
             n = max(1, math.ceil((arm + fingers) / self.resolution))
-            qs, _ = self._states_d(a, delta, np.arange(n + 1) / n, ends, spread)
+            qs, _ = self._states(a, delta, np.arange(n + 1) / n, ends, spread)
             self.states_checked += n + 1
             return not np.any(self.finest_world.batch_in_collision(qs))
         # The first round counts the fingers where they move at an end; elsewhere the
@@ -489,7 +494,7 @@ class CoupledChecker:
         first = arm + (fingers * window if min(ends) <= mga else 0.0)
         n = max(1, math.ceil(first / (2.0 * pads[0])))
         t = np.arange(n + 1) / n
-        qs, low = self._states_d(a, delta, t, ends, spread)
+        qs, low = self._states(a, delta, t, ends, spread)
         levels = self._margins(qs, np.zeros(n + 1, dtype=np.intp))
         if levels is None:
             return False
@@ -514,13 +519,13 @@ class CoupledChecker:
             if tighten:
                 tighten = False
                 if int(pieces.sum()) - pieces.size >= LOCAL_REACH_MIN_STATES:
-                    arm = min(arm, max(self._local_reach(a, b, abs_delta), ARM_TIGHTEN_FLOOR * arm))
+                    arm = self._local_reach(a, b, abs_delta, arm)
                     continue
             owner = np.repeat(np.arange(open_.size), pieces - 1)
             first = np.cumsum(pieces - 1) - (pieces - 1)
             rank = np.arange(owner.size) - first[owner] + 1
             new_t = t[open_][owner] + rank * (dt[open_] / pieces)[owner]
-            new_qs, new_low = self._states_d(a, delta, new_t, ends, spread)
+            new_qs, new_low = self._states(a, delta, new_t, ends, spread)
             new_levels = self._margins(new_qs, thinner[owner])
             if new_levels is None:
                 return False
@@ -550,22 +555,11 @@ class CoupledChecker:
         t: np.ndarray,
         ends: tuple[float, float],
         spread: float | None = None,
-    ) -> np.ndarray:
+    ) -> tuple[np.ndarray, np.ndarray | None]:
         """Full configurations ``(nq, len(t))`` at ``a + t * delta`` (``t`` in [0, 1]), the
         hand from the law; ``ends`` are ``d`` at ``t = 0`` and ``t = 1``, ``spread`` how
         much ``d`` changes at most per unit of ``t`` (default :attr:`distance_rates`
-        ``@ |delta|``)."""
-        return self._states_d(a, delta, t, ends, spread)[0]
-
-    def _states_d(
-        self,
-        a: np.ndarray,
-        delta: np.ndarray,
-        t: np.ndarray,
-        ends: tuple[float, float],
-        spread: float | None = None,
-    ) -> tuple[np.ndarray, np.ndarray | None]:
-        """:meth:`_states`, and the lower bounds of ``d`` their hands were set from (exact
+        ``@ |delta|``). Also the lower bounds of ``d`` the hands were set from (exact
         where ``d <= mga``; ``None`` for a fixed hand)."""
         if spread is None:
             spread = float(self.distance_rates @ np.abs(delta))

@@ -15,7 +15,7 @@ import openup_ompl as oo
 from openup_ompl._resources import data_dir
 from openup_ompl.collision import CollisionWorld
 from openup_ompl.motion_bound import body_bounds, hand_rate, local_reach, self_pair_factors
-from openup_ompl.validity import COARSE_LEVELS, CoupledChecker
+from openup_ompl.validity import ARM_TIGHTEN_FLOOR, COARSE_LEVELS, CoupledChecker
 
 ompl_util.setLogLevel(ompl_util.LOG_ERROR)
 
@@ -122,6 +122,46 @@ def test_motion_spread_bounds_d_along_motions(robot_setup: oo.GraspPlanningSetup
     assert np.median(short) < 0.6
 
 
+def _box_corners(geometry: pin.GeometryObject) -> np.ndarray:
+    """The 8 corners of a geometry's local bounding box, in its own frame: ``(8, 3)``."""
+    shape = geometry.geometry
+    shape.computeLocalAABB()
+    low, high = np.asarray(shape.aabb_local.min_), np.asarray(shape.aabb_local.max_)
+    return np.array(
+        [[(high if bit else low)[i] for i, bit in enumerate(bits)] for bits in np.ndindex(2, 2, 2)]
+    )
+
+
+def _sweep_corners(
+    robot: oo.Robot,
+    geometry_model: pin.GeometryModel,
+    corners: dict[int, np.ndarray],
+    q: np.ndarray,
+    b: np.ndarray,
+    t: np.ndarray,
+) -> tuple[list[np.ndarray], dict[int, np.ndarray]]:
+    """The straight arm motion from ``q``'s arm to ``b`` (the rest of ``q`` still), at the
+    parameters ``t`` (from 0 to 1): the arm joints' placements ``(n, 4, 4)`` at both ends,
+    and each geometry's box corners in the world at every ``t``, ``(len(t), 8, 3)``."""
+    model, data = robot.model, robot.model.createData()
+    geometry_data = geometry_model.createData()
+    arm_ids = [model.getJointId(n) for n in robot.spec.arm_joints]
+    q = q.copy()
+    a = q[robot.arm_idx].copy()
+    frames: list[np.ndarray] = []
+    points: dict[int, list[np.ndarray]] = {g: [] for g in corners}
+    for x in t:
+        q[robot.arm_idx] = a + x * (b - a)
+        pin.forwardKinematics(model, data, q)
+        pin.updateGeometryPlacements(model, data, geometry_model, geometry_data)
+        if x in (0.0, 1.0):
+            frames.append(np.array([data.oMi[j].homogeneous for j in arm_ids]))
+        for g, box in corners.items():
+            placement = geometry_data.oMg[g]
+            points[g].append(box @ placement.rotation.T + placement.translation)
+    return frames, {g: np.array(p) for g, p in points.items()}
+
+
 def test_local_reach_bounds_every_point(robot_setup: oo.GraspPlanningSetup) -> None:
     """The per-motion bound of the arm's share of the displacement, from the placements at
     the motion's two ends, holds for every corner of every moving geometry's box between
@@ -129,26 +169,14 @@ def test_local_reach_bounds_every_point(robot_setup: oo.GraspPlanningSetup) -> N
     below the global weights' bound on short motions at the grasp (the retreat's)."""
     checker = robot_setup.checker
     robot = robot_setup.problem.robot
-    model, data = robot.model, robot.model.createData()
     geometry_model = robot.collision_model
-    geometry_data = geometry_model.createData()
     bodies = body_bounds(robot)
     assert bodies is not None
-    moving = [(i, g) for i, g in enumerate(geometry_model.geometryObjects) if g.parentJoint != 0]
-    corners = []
-    for _, g in moving:
-        g.geometry.computeLocalAABB()
-        box = g.geometry.aabb_local
-        low, high = np.asarray(box.min_), np.asarray(box.max_)
-        corners.append(
-            np.array(
-                [
-                    [(high if bit else low)[i] for i, bit in enumerate(bits)]
-                    for bits in np.ndindex(2, 2, 2)
-                ]
-            )
-        )
-    arm_ids = [model.getJointId(n) for n in robot.spec.arm_joints]
+    corners = {
+        i: _box_corners(g)
+        for i, g in enumerate(geometry_model.geometryObjects)
+        if g.parentJoint != 0
+    }
     grasp = robot_setup.goal.solutions[0]
     rng = np.random.default_rng(5)
     t = np.linspace(0.0, 1.0, 41)
@@ -162,25 +190,10 @@ def test_local_reach_bounds_every_point(robot_setup: oo.GraspPlanningSetup) -> N
             robot.arm_upper,
         )
         q = robot.full_q(a, rng.uniform(robot_setup.law.lower, robot_setup.law.upper))
-        frames = []
-        points = []
-        for x in t:
-            q[robot.arm_idx] = a + x * (b - a)
-            pin.forwardKinematics(model, data, q)
-            pin.updateGeometryPlacements(model, data, geometry_model, geometry_data)
-            if x in (0.0, 1.0):
-                frames.append(np.array([data.oMi[j].homogeneous for j in arm_ids]))
-            points.append(
-                np.concatenate(
-                    [
-                        box @ geometry_data.oMg[i].rotation.T + geometry_data.oMg[i].translation
-                        for (i, _), box in zip(moving, corners, strict=True)
-                    ]
-                )
-            )
+        frames, points = _sweep_corners(robot, geometry_model, corners, q, b, t)
         abs_delta = np.abs(b - a)
         bound = local_reach(bodies, frames[0], frames[1], abs_delta)
-        points_t = np.array(points)  # (len(t), points, 3)
+        points_t = np.concatenate(list(points.values()), axis=1)  # (len(t), points, 3)
         for i in range(0, t.size, 5):
             moved = np.linalg.norm(points_t - points_t[i], axis=2).max(axis=1)
             assert np.all(moved <= bound * np.abs(t - t[i]) + 1e-9)
@@ -197,9 +210,8 @@ def test_self_pair_margins_cover_the_relative_motion(robot_setup: oo.GraspPlanni
     pair apart over the interval it covers. Pairs inside the hand have no margin."""
     checker = robot_setup.checker
     robot = robot_setup.problem.robot
-    model, data = robot.model, robot.model.createData()
+    model = robot.model
     geometry_model = checker.world.geometry_model
-    geometry_data = geometry_model.createData()
     factors = self_pair_factors(robot, geometry_model)
     n_robot = robot.collision_model.ngeoms
     pairs = [k for k, f in enumerate(factors) if f > 0]
@@ -213,24 +225,13 @@ def test_self_pair_margins_cover_the_relative_motion(robot_setup: oo.GraspPlanni
                 for g in (pair.first, pair.second)
             ]
             assert not (chains[0] ^ chains[1]) & arm_joints
-    corners = {}
-    for g in {
-        i
+    corners = {
+        g: _box_corners(geometry_model.geometryObjects[g])
         for k in pairs
-        for i in (geometry_model.collisionPairs[k].first, geometry_model.collisionPairs[k].second)
-    }:
-        shape = geometry_model.geometryObjects[g].geometry
-        shape.computeLocalAABB()
-        low, high = np.asarray(shape.aabb_local.min_), np.asarray(shape.aabb_local.max_)
-        corners[g] = np.array(
-            [
-                [(high if bit else low)[i] for i, bit in enumerate(bits)]
-                for bits in np.ndindex(2, 2, 2)
-            ]
-        )
+        for g in (geometry_model.collisionPairs[k].first, geometry_model.collisionPairs[k].second)
+    }
     bodies = body_bounds(robot)
     assert bodies is not None
-    arm_ids = [model.getJointId(n) for n in robot.spec.arm_joints]
     grasp = robot_setup.goal.solutions[0]
     rng = np.random.default_rng(17)
     t = np.linspace(0.0, 1.0, 21)
@@ -242,30 +243,15 @@ def test_self_pair_margins_cover_the_relative_motion(robot_setup: oo.GraspPlanni
             a + rng.normal(0.0, (0.05, 0.2, 0.6)[k % 3], a.size), robot.arm_lower, robot.arm_upper
         )
         q = robot.full_q(a, rng.uniform(robot_setup.law.lower, robot_setup.law.upper))
-        points, frames = [], []
-        for x in t:
-            q[robot.arm_idx] = a + x * (b - a)
-            pin.forwardKinematics(model, data, q)
-            pin.updateGeometryPlacements(model, data, geometry_model, geometry_data)
-            if x in (0.0, 1.0):
-                frames.append(np.array([data.oMi[j].homogeneous for j in arm_ids]))
-            points.append(
-                {
-                    g: c @ geometry_data.oMg[g].rotation.T + geometry_data.oMg[g].translation
-                    for g, c in corners.items()
-                }
-            )
+        frames, points = _sweep_corners(robot, geometry_model, corners, q, b, t)
         abs_delta = np.abs(b - a)
         arm = float(abs_delta @ checker.plateau_weights)
-        spacing = min(arm, max(local_reach(bodies, frames[0], frames[1], abs_delta), 0.5 * arm))
+        local = local_reach(bodies, frames[0], frames[1], abs_delta)
+        spacing = min(arm, max(local, ARM_TIGHTEN_FLOOR * arm))
         for p in pairs:
             pair = geometry_model.collisionPairs[p]
-            gaps = np.array(
-                [
-                    np.linalg.norm(s[pair.first][:, None] - s[pair.second][None], axis=2)
-                    for s in points
-                ]
-            )  # (len(t), 8, 8)
+            first, second = points[pair.first], points[pair.second]  # (len(t), 8, 3)
+            gaps = np.linalg.norm(first[:, :, None] - second[:, None], axis=3)  # (len(t), 8, 8)
             change = np.abs(gaps[:, None] - gaps[None, :]).max(axis=(2, 3))
             allowed = factors[p] * spacing * np.abs(t[:, None] - t[None, :])
             worst = max(worst, float((change / np.maximum(allowed, 1e-15))[allowed > 0].max()))
@@ -292,7 +278,7 @@ def test_batched_hands_are_the_laws(robot_setup: oo.GraspPlanningSetup) -> None:
         ends = (checker.normalized_distance(a), checker.normalized_distance(b))
         t = np.arange(checker.segment_count(a, b) + 1) / checker.segment_count(a, b)
         arms = a + t[:, None] * (b - a)
-        qs = checker._states(a, b - a, t, ends)
+        qs, _ = checker._states(a, b - a, t, ends)
         path = np.concatenate([arms, [a], arms[::3]])
         for batch, states in ((qs, arms), (checker.coupled_qs(path), path)):
             expected = np.array([checker.coupled_q(x) for x in states]).T
@@ -326,7 +312,7 @@ def test_fingers_still_where_the_lower_bounds_of_d_say(
         checker.normalized_distance(a)
         spread = checker._motion_spread(np.abs(b - a))
         t = np.sort(np.concatenate([[0.0, 1.0], rng.uniform(0.0, 1.0, 30)]))
-        _, low = checker._states_d(a, b - a, t, ends, spread)
+        _, low = checker._states(a, b - a, t, ends, spread)
         assert low is not None
         d = np.array([checker.normalized_distance(a + x * (b - a)) for x in t])
         assert np.all(low <= d + 1e-12)
