@@ -60,6 +60,7 @@ def state_cost(setups: dict[str, Any], states: int, rounds: int) -> dict[str, fl
             order = order[r % len(order) :] + order[: r % len(order)]
             for name in order:
                 checker = setups[name].checker
+                checker.forget()  # every state checked, not read back from the last round
                 start = time.perf_counter()
                 for arm in samples[name]:
                     checker.is_valid(arm)

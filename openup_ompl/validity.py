@@ -60,6 +60,10 @@ LOCAL_REACH_MIN_STATES = 8
 ARM_TIGHTEN_FLOOR = 0.5
 #: Accepted motions remembered by :attr:`CoupledChecker.certified` at most.
 CERTIFIED_MAX = 200_000
+#: Collision-free arm states remembered, with their ``d``, at most (see
+#: :meth:`CoupledChecker.is_valid`): a tree's vertex is checked when it is grown and is an
+#: end of the motions checked later.
+KNOWN_VALID_MAX = 50_000
 
 
 class CoupledChecker:
@@ -167,6 +171,7 @@ class CoupledChecker:
         self.states_checked = 0
         self.motions_checked = 0
         self.certified: set[bytes] = set()
+        self._known_valid: dict[bytes, float] = {}
 
     # -- single states ----------------------------------------------------------------
     def normalized_distance(self, arm: np.ndarray) -> float:
@@ -174,6 +179,14 @@ class CoupledChecker:
         context = self.world.context()
         context.q[self._arm_sel] = arm
         return self._palm_distance(context.data, context.q)
+
+    def _palm_point(self, arm: np.ndarray) -> list[float]:
+        """The palm's position [m] at an arm configuration."""
+        context = self.world.context()
+        q, data = context.q, context.data
+        q[self._arm_sel] = arm
+        pin.forwardKinematics(self._model, data, q)
+        return pin.updateFramePlacement(self._model, data, self._palm).translation.tolist()
 
     def coupled_q(self, arm: np.ndarray) -> np.ndarray:
         """Full configuration for an arm configuration, the hand set by the law (a copy)."""
@@ -212,17 +225,32 @@ class CoupledChecker:
 
     def is_valid(self, arm: object) -> bool:
         """Whether the arm configuration, hand set by the law, is collision-free (with
-        the finest margin, ``paddings[-1]``)."""
+        the finest margin, ``paddings[-1]``).
+
+        An arm configuration given as a float64 array and found free is remembered (up to
+        :data:`KNOWN_VALID_MAX`, then forgotten at once), and not checked again: the
+        motions checked later from or to it (:meth:`check_motion`) read its ``d`` and its
+        verdict back.
+        """
         return self._check_state(arm)[0]
 
     def _check_state(self, arm: object) -> tuple[bool, float]:
         """:meth:`is_valid`, and ``d`` there (``inf`` for a fixed hand)."""
+        key = arm.tobytes() if type(arm) is np.ndarray and arm.dtype == np.float64 else None
+        if key is not None:
+            d = self._known_valid.get(key)
+            if d is not None:
+                return True, d
         self.states_checked += 1
         context = self.finest_world.context()
         d = self._fill(context, arm)
         free = not pin.computeCollisions(
             self._model, context.data, context.manager, context.q, True
         )
+        if free and key is not None:
+            if len(self._known_valid) >= KNOWN_VALID_MAX:
+                self._known_valid.clear()
+            self._known_valid[key] = d
         return free, d
 
     def is_valid_with_hand(self, arm: np.ndarray, hand: np.ndarray) -> bool:
@@ -252,12 +280,9 @@ class CoupledChecker:
             return self.plateau_weights
         return self.motion_weights
 
-    def _motion_spread(self, abs_delta: np.ndarray) -> float:
+    def _motion_spread(self, a: np.ndarray, b: np.ndarray, abs_delta: np.ndarray) -> float:
         """How much ``d`` can change per unit of ``t`` along the motion ``a -> b`` with
-        ``abs_delta = |b - a|`` (at most :attr:`distance_rates` ``@ abs_delta``). Call it
-        right after :meth:`_check_state` of ``b`` and :meth:`normalized_distance` of ``a``:
-        it reads the palm's placements they left in the finest and the first world's
-        contexts.
+        ``abs_delta = |b - a|`` (at most :attr:`distance_rates` ``@ abs_delta``).
 
         The palm's speed bound of :func:`~openup_ompl.motion_bound.local_rate_terms`: its
         displacement between the motion's ends plus half a bound of its acceleration. Near
@@ -269,10 +294,9 @@ class CoupledChecker:
         if self._local_terms is None:
             return spread
         second, rotation = self._local_terms
-        palm_a = self.world.context().data.oMf[self._palm].translation.tolist()
-        palm_b = self.finest_world.context().data.oMf[self._palm].translation.tolist()
         turn = float(rotation @ abs_delta)
-        taylor = math.dist(palm_a, palm_b) + 0.5 * float(abs_delta @ second @ abs_delta)
+        taylor = math.dist(self._palm_point(a), self._palm_point(b))
+        taylor += 0.5 * float(abs_delta @ second @ abs_delta)
         return min(spread, (taylor + turn) * self._inv_start)
 
     def _local_may_pay(self, abs_delta: np.ndarray, arm: float) -> bool:
@@ -353,8 +377,8 @@ class CoupledChecker:
             qs[self._hand_sel, :] = law.fixed_clipped[:, None]
             return None
         d = self._law_distances(qs, path, ends)
-        if np.any(d <= law.mga):
-            qs[self._hand_sel, :] = law.batch(d).T
+        if d.min() <= law.mga:
+            qs[self._hand_sel, :] = law.columns(d)
         else:  # all on the plateau
             qs[self._hand_sel, :] = law.high[:, None]
         return d
@@ -456,22 +480,28 @@ class CoupledChecker:
         free, db = self._check_state(b)
         if not free:
             return False
-        fixed = self.law.fixed is not None
-        ends = (math.inf, math.inf) if fixed else (self.normalized_distance(a), db)
+        mga = self.law.mga
         delta = b - a
         abs_delta = np.abs(delta)
         spread = float(self.distance_rates @ abs_delta)  # d changes by at most [per unit t]
         # The fingers may move where d may reach mga along the motion (see weights()).
-        fingers_move = not fixed and 0.5 * (ends[0] + ends[1] - spread) <= self.law.mga
+        # d(a) >= d(b) - spread, so d(b) - spread > mga keeps the hand on the plateau all
+        # along without forward kinematics at a.
+        ends = (math.inf, math.inf)
+        fingers_move = self.law.fixed is None and db - spread <= mga
+        if fingers_move:
+            da = self._known_valid.get(a.tobytes())
+            ends = (self.normalized_distance(a) if da is None else da, db)
+            fingers_move = 0.5 * (ends[0] + ends[1] - spread) <= mga
         if fingers_move and self._local_terms is not None:
             # Bound d along this motion from its ends, tighter than the global rates.
-            spread = self._motion_spread(abs_delta)
-            fingers_move = 0.5 * (ends[0] + ends[1] - spread) <= self.law.mga
+            spread = self._motion_spread(a, b, abs_delta)
+            fingers_move = 0.5 * (ends[0] + ends[1] - spread) <= mga
+        plateau = not fingers_move
         # No robot point moves farther [m] per unit of t than the arm's share, plus the
         # fingers' (through d) where d may be at or below mga.
         arm = float(abs_delta @ self.plateau_weights)
         fingers = self._hand_rate * spread if fingers_move else 0.0
-        mga = self.law.mga
         # The part of the motion where d may reach mga (from the ends and the spread).
         window = 1.0
         if fingers > 0.0:
@@ -486,7 +516,7 @@ class CoupledChecker:
             tighten = False
         if pads[-1] <= 0.0:  # no padding: plain resolution checks, no guarantee
             n = max(1, math.ceil((arm + fingers) / self.resolution))
-            qs, _ = self._states(a, delta, np.arange(n + 1) / n, ends, spread)
+            qs, _ = self._states(a, delta, np.arange(n + 1) / n, ends, spread, plateau)
             self.states_checked += n + 1
             return not np.any(self.finest_world.batch_in_collision(qs))
         # The first round counts the fingers where they move at an end; elsewhere the
@@ -494,7 +524,7 @@ class CoupledChecker:
         first = arm + (fingers * window if min(ends) <= mga else 0.0)
         n = max(1, math.ceil(first / (2.0 * pads[0])))
         t = np.arange(n + 1) / n
-        qs, low = self._states(a, delta, t, ends, spread)
+        qs, low = self._states(a, delta, t, ends, spread, plateau)
         levels = self._margins(qs, np.zeros(n + 1, dtype=np.intp))
         if levels is None:
             return False
@@ -525,7 +555,7 @@ class CoupledChecker:
             first = np.cumsum(pieces - 1) - (pieces - 1)
             rank = np.arange(owner.size) - first[owner] + 1
             new_t = t[open_][owner] + rank * (dt[open_] / pieces)[owner]
-            new_qs, new_low = self._states(a, delta, new_t, ends, spread)
+            new_qs, new_low = self._states(a, delta, new_t, ends, spread, plateau)
             new_levels = self._margins(new_qs, thinner[owner])
             if new_levels is None:
                 return False
@@ -534,6 +564,13 @@ class CoupledChecker:
             levels = np.concatenate([levels, new_levels])[order]
             if low is not None and new_low is not None:
                 low = np.concatenate([low, new_low])[order]
+
+    def forget(self) -> None:
+        """Forget the free states :meth:`is_valid` remembers and the motions
+        :attr:`certified` holds: the next checks of them are done again (to time cold
+        checks, or after the checker's scene was changed in place)."""
+        self._known_valid.clear()
+        self.certified.clear()
 
     def _certified(self, a: np.ndarray, b: np.ndarray) -> None:
         if len(self.certified) >= CERTIFIED_MAX:
@@ -555,12 +592,21 @@ class CoupledChecker:
         t: np.ndarray,
         ends: tuple[float, float],
         spread: float | None = None,
+        plateau: bool = False,
     ) -> tuple[np.ndarray, np.ndarray | None]:
         """Full configurations ``(nq, len(t))`` at ``a + t * delta`` (``t`` in [0, 1]), the
         hand from the law; ``ends`` are ``d`` at ``t = 0`` and ``t = 1``, ``spread`` how
         much ``d`` changes at most per unit of ``t`` (default :attr:`distance_rates`
         ``@ |delta|``). Also the lower bounds of ``d`` the hands were set from (exact
-        where ``d <= mga``; ``None`` for a fixed hand)."""
+        where ``d <= mga``; ``None`` for a fixed hand). ``plateau`` says that ``d`` is
+        known to stay above ``mga`` all along: every hand is the law's plateau, and no
+        bound of ``d`` is computed (``None`` is returned for them)."""
+        law = self.law
+        if plateau or law.fixed_clipped is not None:
+            qs = self._arm_qs(a + t[:, None] * delta)
+            hand = law.high if law.fixed_clipped is None else law.fixed_clipped
+            qs[self._hand_sel, :] = hand[:, None]
+            return qs, None
         if spread is None:
             spread = float(self.distance_rates @ np.abs(delta))
         # The hands of _set_hands, which bounds d from the motion's two ends: bracket the

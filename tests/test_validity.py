@@ -15,6 +15,7 @@ import openup_ompl as oo
 from openup_ompl._resources import data_dir
 from openup_ompl.collision import CollisionWorld
 from openup_ompl.motion_bound import body_bounds, hand_rate, local_reach, self_pair_factors
+from openup_ompl import validity
 from openup_ompl.validity import ARM_TIGHTEN_FLOOR, COARSE_LEVELS, CoupledChecker
 
 ompl_util.setLogLevel(ompl_util.LOG_ERROR)
@@ -109,9 +110,7 @@ def test_motion_spread_bounds_d_along_motions(robot_setup: oo.GraspPlanningSetup
         scale = (0.01, 0.05, 0.2, 0.4)[k % 4]
         b = np.clip(a + rng.normal(0.0, scale, a.size), robot.arm_lower, robot.arm_upper)
         abs_delta = np.abs(b - a)
-        checker._check_state(b)
-        checker.normalized_distance(a)
-        spread = checker._motion_spread(abs_delta)
+        spread = checker._motion_spread(a, b, abs_delta)
         lipschitz = float(checker.distance_rates @ abs_delta)
         assert spread <= lipschitz + 1e-12
         if k % 4 == 0:
@@ -308,9 +307,7 @@ def test_fingers_still_where_the_lower_bounds_of_d_say(
             a + rng.normal(0.0, (0.1, 0.4, 0.8)[k % 3], a.size), robot.arm_lower, robot.arm_upper
         )
         ends = (checker.normalized_distance(a), checker.normalized_distance(b))
-        checker._check_state(b)
-        checker.normalized_distance(a)
-        spread = checker._motion_spread(np.abs(b - a))
+        spread = checker._motion_spread(a, b, np.abs(b - a))
         t = np.sort(np.concatenate([[0.0, 1.0], rng.uniform(0.0, 1.0, 30)]))
         _, low = checker._states(a, b - a, t, ends, spread)
         assert low is not None
@@ -357,6 +354,36 @@ def test_hand_rate_bounds_finger_motion(robot_setup: oo.GraspPlanningSetup) -> N
     assert rate > 0.0
 
 
+def test_free_states_are_remembered_colliding_ones_are_not(
+    setup: oo.GraspPlanningSetup, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A state found free is not checked again (an equal array, by ``is_valid`` or as a
+    motion's end) and keeps its ``d``; a colliding state, or one given as a list, is
+    checked every time; the memory stays within its bound and ``forget`` empties it."""
+    monkeypatch.setattr(validity, "KNOWN_VALID_MAX", 5)
+    checker = CoupledChecker(setup.problem, setup.law)
+    robot = setup.problem.robot
+    rng = np.random.default_rng(4)
+    found: dict[bool, np.ndarray] = {}
+    while len(found) < 2:
+        arm = rng.uniform(robot.arm_lower, robot.arm_upper)
+        found.setdefault(checker.is_valid(arm), arm)
+    free, colliding = found[True], found[False]
+    checker.is_valid(free)  # the memory may have been restarted since it was found
+    before = checker.states_checked
+    assert checker._check_state(free.copy()) == (True, checker.normalized_distance(free))
+    assert checker.states_checked == before
+    assert not checker.is_valid(colliding)
+    assert checker.is_valid(free.tolist())
+    assert checker.states_checked == before + 2
+    checker.forget()
+    assert checker.is_valid(free)
+    assert checker.states_checked == before + 3
+    for _ in range(20):
+        checker.is_valid(rng.uniform(robot.arm_lower, robot.arm_upper))
+        assert len(checker._known_valid) <= 5
+
+
 def test_batched_and_serial_motion_checks_agree(setup: oo.GraspPlanningSetup) -> None:
     """The motion check on a parallel world and on a one-thread world (its batches then
     loop over the states) give the same verdicts and counts on valid and colliding motions."""
@@ -372,6 +399,7 @@ def test_batched_and_serial_motion_checks_agree(setup: oo.GraspPlanningSetup) ->
         b = a + (b - a) * 0.4
         if not setup.checker.is_valid(b):
             continue
+        assert one.is_valid(b)  # both remember b: neither checks it again below
         before = (setup.checker.states_checked, one.states_checked)
         verdicts.append(setup.checker.check_motion(a, b))
         assert verdicts[-1] == one.check_motion(a, b)
