@@ -183,13 +183,15 @@ def test_hand_law_equals_clipped_open_hand(panda, u, variant):
 
 @pytest.mark.parametrize("w", [[0.04, 0.04], [0.05, 0.05]])
 def test_hand_law_batch_equals_per_distance_calls(panda, w):
-    """HandLaw.batch(ds) row i equals HandLaw(ds[i]), clipped or not."""
+    """HandLaw.batch(ds) row i equals HandLaw(ds[i]), clipped or not; HandLaw.columns is
+    its transpose."""
     law = panda.hand_law(u=0.7, w=w)
     ds = np.array([0.0, 0.01, 0.1, law.mga - EPS, law.mga, law.mga + EPS, 0.5, 1.0, 3.0])
     rows = law.batch(ds)
     assert rows.shape == (ds.size, law.size)
     for d, row in zip(ds, rows, strict=True):
         np.testing.assert_array_equal(row, law(d))
+    np.testing.assert_array_equal(law.columns(ds), rows.T)
 
 
 def test_hand_law_fixed_keeps_the_hand_constant(panda):
@@ -200,6 +202,7 @@ def test_hand_law_fixed_keeps_the_hand_constant(panda):
     for d in ds:
         np.testing.assert_allclose(law(d), expected)
     np.testing.assert_allclose(law.batch(ds), np.tile(expected, (ds.size, 1)))
+    np.testing.assert_allclose(law.columns(ds), np.tile(expected, (ds.size, 1)).T)
 
 
 def test_hand_law_rejects_u_out_of_range(panda):
