@@ -12,10 +12,10 @@ from ompl import util as ompl_util
 from recheck import recheck_plan
 
 import openup_ompl as oo
+from openup_ompl import validity
 from openup_ompl._resources import data_dir
 from openup_ompl.collision import CollisionWorld
 from openup_ompl.motion_bound import body_bounds, hand_rate, local_reach, self_pair_factors
-from openup_ompl import validity
 from openup_ompl.validity import ARM_TIGHTEN_FLOOR, COARSE_LEVELS, CoupledChecker
 
 ompl_util.setLogLevel(ompl_util.LOG_ERROR)
