@@ -87,7 +87,8 @@ class CoupledChecker:
         paddings: The margins [m] of the levels, widest first: the coarse pass's
             (:data:`COARSE_LEVELS`), the base ``padding``, then its halvings.
         coarse_resolution: Spacing [m] of the coarse pass's states.
-        states_checked: States checked so far (single and batched).
+        states_checked: States checked so far (single and batched; a free state
+            :meth:`is_valid` remembers is not checked, nor counted, again).
         motions_checked: Motions checked so far.
         certified: Motions :meth:`check_motion` accepted, as ``(a, b)`` byte keys, so that
             a path made of them need not be checked again (:meth:`is_certified`); kept up
