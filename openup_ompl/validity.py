@@ -58,6 +58,11 @@ LOCAL_REACH_MIN_STATES = 8
 #: global bound: self-collision margins rely on it
 #: (:func:`~openup_ompl.motion_bound.self_pair_factors`).
 ARM_TIGHTEN_FLOOR = 0.5
+#: A motion whose first round has at least this many states (a long one: most are a path
+#: simplifier's shortcuts, most of which collide) is first probed at every
+#: ``PROBE_STRIDE``-th of them against the finest margin (:meth:`CoupledChecker.check_motion`).
+PROBE_MIN_STATES = 24
+PROBE_STRIDE = 8
 #: Accepted motions remembered by :attr:`CoupledChecker.certified` at most.
 CERTIFIED_MAX = 200_000
 #: Collision-free arm states remembered, with their ``d``, at most (see
@@ -467,7 +472,10 @@ class CoupledChecker:
         still uncovered at the spacing their thinner end's margin covers, and checks the
         new states from that margin on; a state that collides even with the finest margin
         refuses the motion. Each round's states of one margin go to Coal in one batch
-        (:meth:`~openup_ompl.collision.CollisionWorld.batch_in_collision`).
+        (:meth:`~openup_ompl.collision.CollisionWorld.batch_in_collision`). A long
+        motion's first round (:data:`PROBE_MIN_STATES` states or more) is probed first:
+        one state in :data:`PROBE_STRIDE` against the finest margin, up to the first that
+        collides, which refuses it as its full round would.
 
         The displacement bound is the arm's share plus the fingers'. The arm's is the
         global weights' (:attr:`plateau_weights`), or, once the motion needs more than the
@@ -526,6 +534,8 @@ class CoupledChecker:
         n = max(1, math.ceil(first / (2.0 * pads[0])))
         t = np.arange(n + 1) / n
         qs, low = self._states(a, delta, t, ends, spread, plateau)
+        if n + 1 >= PROBE_MIN_STATES and self._probe_collides(qs):
+            return False
         levels = self._margins(qs, np.zeros(n + 1, dtype=np.intp))
         if levels is None:
             return False
@@ -619,6 +629,16 @@ class CoupledChecker:
         if not bracket:
             return qs, low
         return qs[:, 1:-1], None if low is None else low[1:-1]
+
+    def _probe_collides(self, qs: np.ndarray) -> bool:
+        """Whether one of every :data:`PROBE_STRIDE` columns of ``qs`` (a long motion's
+        first round) collides with the finest margin, checked one by one up to the first
+        that does. Such a state refuses the motion as :meth:`_margins` would (it collides
+        with every wider margin too), so the verdict is the same; a refused motion then
+        costs a few states instead of its whole first round."""
+        probe = np.asfortranarray(qs[:, PROBE_STRIDE // 2 :: PROBE_STRIDE])
+        self.states_checked += probe.shape[1]
+        return bool(np.any(self.finest_world.batch_in_collision(probe)))
 
     def _margins(self, qs: np.ndarray, first: np.ndarray) -> np.ndarray | None:
         """For each column of ``qs``, the index of the widest margin, from ``first`` on

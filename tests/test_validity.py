@@ -14,6 +14,7 @@ from recheck import recheck_plan
 import openup_ompl as oo
 from openup_ompl import validity
 from openup_ompl._resources import data_dir
+from openup_ompl.benchmark import default_problems_dir
 from openup_ompl.collision import CollisionWorld
 from openup_ompl.motion_bound import body_bounds, hand_rate, local_reach, self_pair_factors
 from openup_ompl.validity import ARM_TIGHTEN_FLOOR, COARSE_LEVELS, CoupledChecker
@@ -382,6 +383,40 @@ def test_free_states_are_remembered_colliding_ones_are_not(
     for _ in range(20):
         checker.is_valid(rng.uniform(robot.arm_lower, robot.arm_upper))
         assert len(checker._known_valid) <= 5
+
+
+@pytest.mark.parametrize("robot_name", sorted(oo.available_robots()))
+def test_long_motions_are_probed_with_the_same_verdicts(
+    robot_name: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Long motions (first rounds of ``PROBE_MIN_STATES`` states and more) get the same
+    verdicts with the probe as without it, and the refused ones cost fewer states."""
+    problem = oo.load_scene(default_problems_dir(robot_name) / "shelf_small.toml")
+    probed = CoupledChecker(problem)
+    plain = CoupledChecker(problem)
+    probe_min = validity.PROBE_MIN_STATES
+    rng = np.random.default_rng(8)
+    robot = problem.robot
+    states = {True: [0, 0], False: [0, 0]}  # verdict -> state checks, probed and plain
+    long_motions = 0
+    while long_motions < 30:
+        a, b = (rng.uniform(robot.arm_lower, robot.arm_upper) for _ in range(2))
+        reach = float(np.abs(b - a) @ probed.plateau_weights)
+        if reach < probe_min * probed.coarse_resolution:
+            continue
+        if not (probed.is_valid(a) and probed.is_valid(b)):
+            continue
+        long_motions += 1
+        verdicts = []
+        for checker, minimum in ((probed, probe_min), (plain, 10**9)):
+            monkeypatch.setattr(validity, "PROBE_MIN_STATES", minimum)
+            checker.forget()
+            before = checker.states_checked
+            verdicts.append(checker.check_motion(a, b))
+            states[verdicts[0]][checker is plain] += checker.states_checked - before
+        assert verdicts[0] == verdicts[1]
+    assert states[False][1] > 0, "no long motion collides"
+    assert states[False][0] < 0.5 * states[False][1]
 
 
 def test_batched_and_serial_motion_checks_agree(setup: oo.GraspPlanningSetup) -> None:
