@@ -554,3 +554,28 @@ def test_pool_and_thread_batches_agree(setup: oo.GraspPlanningSetup) -> None:
         flags = world.batch_in_collision(qs[:, :size], stop_at_first=False)
         assert flags.tolist() == expected[:size].tolist()
         assert bool(np.any(world.batch_in_collision(qs[:, :size]))) == bool(expected[:size].any())
+
+
+def test_no_collision_query_warm_starts_gjk(setup: oo.GraspPlanningSetup) -> None:
+    """Every collision request of a world's thread context and of its pool has GJK's cached
+    guess off (an answer must not depend on the queries before it), and so has every
+    distance request of the grasp closer, which computes distances."""
+    import warnings
+
+    import coal
+
+    world = setup.checker.finest_world
+    qs = np.asfortranarray(
+        np.repeat(setup.checker.coupled_q(np.asarray(setup.problem.start))[:, None], 40, axis=1)
+    )
+    world.batch_in_collision(qs)  # builds the pool
+    datas = [world.context().geometry_data, *world._pool.getGeometryDatas()]
+    closer = oo.HandCloser(setup.problem)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        for geometry_data in datas:
+            for request in geometry_data.collisionRequests:
+                assert not request.enable_cached_gjk_guess
+                assert request.gjk_initial_guess == coal.GJKInitialGuess.DefaultGuess
+        for request in closer._geometry_data.distanceRequests:
+            assert not request.enable_cached_gjk_guess
