@@ -207,7 +207,7 @@ class CollisionWorld:
             if self._pool is None:
                 self._pool = _ManagerPool(self.model, self.geometry_model, self.num_threads)
                 for geometry_data in self._pool.getGeometryDatas():
-                    _with_margins(_without_warm_start(geometry_data, False), self.margins)
+                    _with_margins(_without_warm_start(geometry_data, distances=False), self.margins)
             return np.asarray(
                 pin.computeCollisionsInParallel(
                     self.num_threads, self._pool, qs, True, stop_at_first

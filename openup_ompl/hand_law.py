@@ -258,15 +258,11 @@ class HandLaw:
 
     def batch(self, d: np.ndarray) -> np.ndarray:
         """Hand configurations for a vector of distances: shape ``(len(d), size)``."""
-        d = np.asarray(d, dtype=float)[:, None]
-        if self.fixed_clipped is not None:
-            return np.repeat(self.fixed_clipped[None, :], d.shape[0], axis=0)
-        low = np.clip(self.arrival + d * self.low_slope, self.lower, self.upper)
-        return np.where(d > self.mga, self.high, low)
+        return self.columns(d).T
 
     def columns(self, d: np.ndarray) -> np.ndarray:
-        """:meth:`batch` transposed, for the columns of a configuration array: shape
-        ``(size, len(d))`` (written with fewer array operations)."""
+        """Hand configurations for a vector of distances as the columns of an array of
+        shape ``(size, len(d))`` (:meth:`batch` is its transpose)."""
         d = np.asarray(d, dtype=float)
         if self.fixed_clipped is not None:
             return np.repeat(self.fixed_clipped[:, None], d.size, axis=1)

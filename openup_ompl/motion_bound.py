@@ -141,18 +141,23 @@ def local_rate_terms(robot: Robot, law: HandLaw) -> tuple[np.ndarray, np.ndarray
     arm_ids = [model.getJointId(name) for name in robot.spec.arm_joints]
     if any(is_prismatic(model.joints[j]) for j in arm_ids):
         return None
-    reach = palm_reach(robot)
-    n = len(arm_ids)
-    second = np.zeros((n, n))
+    second = _second_derivatives(model, arm_ids, palm_reach(robot)[:, None])[0]
+    return second, _rotation_rates(robot, law)
+
+
+def _second_derivatives(model: pin.Model, arm_ids: list[int], reach: np.ndarray) -> np.ndarray:
+    """``(m, n, n)`` bounds of ``|d2x/dq_i dq_j|`` for points ``x`` of ``m`` groups, from
+    ``reach`` ``(n, m)``: each arm joint's distance to the group's points (0 where it does
+    not move them). The bound is the later joint's reach when both joints move the group
+    (one then lies below the other in the chain), else 0."""
+    n, m = reach.shape
+    second = np.zeros((m, n, n))
     for i, joint in enumerate(arm_ids):
         below = set(model.subtrees[joint])
         for j, other in enumerate(arm_ids):
-            if reach[i] > 0 and reach[j] > 0:
-                # The later joint of the two in the chain (both move the palm, so one
-                # lies below the other).
-                later = j if other in below else i
-                second[i, j] = reach[later]
-    return second, _rotation_rates(robot, law)
+            later = j if other in below else i
+            second[:, i, j] = np.where((reach[i] > 0) & (reach[j] > 0), reach[later], 0.0)
+    return second
 
 
 def arm_weights(robot: Robot) -> np.ndarray:
@@ -269,12 +274,7 @@ def body_bounds(robot: Robot) -> BodyBounds | None:
         for k, body in enumerate(bodies):
             if body in below:
                 reach[j, k] = _chain_length(model, joint, body) + far[k]
-    second = np.zeros((m, n, n))
-    for i, joint in enumerate(arm_ids):
-        below = set(model.subtrees[joint])
-        for j, other in enumerate(arm_ids):
-            later = j if other in below else i  # both move the body: one lies below the other
-            second[:, i, j] = np.where((reach[i] > 0) & (reach[j] > 0), reach[later], 0.0)
+    second = _second_derivatives(model, arm_ids, reach)
     index = {joint: i for i, joint in enumerate(arm_ids)}
     return BodyBounds(
         arm_index=np.array([index[b] for b in bodies]),
@@ -284,14 +284,20 @@ def body_bounds(robot: Robot) -> BodyBounds | None:
     )
 
 
+def body_curvature(bounds: BodyBounds, abs_delta: np.ndarray) -> np.ndarray:
+    """Per body, the bound ``K`` of ``|x''(t)|`` for its points along a straight motion with
+    ``abs_delta = |b - a|`` (see :func:`local_reach`), ``(m,)`` [m]."""
+    return bounds.second @ np.outer(abs_delta, abs_delta).ravel()
+
+
 def local_reach(
-    bounds: BodyBounds, frames_a: np.ndarray, frames_b: np.ndarray, abs_delta: np.ndarray
+    bounds: BodyBounds, frames_a: np.ndarray, frames_b: np.ndarray, curvature: np.ndarray
 ) -> float:
     """Bound [m] on how far any robot point moves through the arm along the straight motion
     ``q(t) = a + t (b - a)``, ``t`` in [0, 1], per unit of ``t``, from the arm joints'
     placements at both ends (``frames_a``, ``frames_b``: ``(n, 4, 4)`` homogeneous, in
-    ``spec.arm_joints`` order) and ``abs_delta = |b - a|``. The fingers' own motion under
-    the law is not included.
+    ``spec.arm_joints`` order) and each body's :func:`body_curvature`. The fingers' own
+    motion under the law is not included.
 
     A point ``x`` of body ``k`` (fixed in its joint's frame) has ``|x''(t)| <= K``, the
     quadratic form of ``second[k]`` in ``|b - a|`` (``d2x/dq_i dq_j = w_i x (w_j x (x -
@@ -310,7 +316,6 @@ def local_reach(
     # A point at r from the centre moves by |(R_b - R_a) r| <= 2 sin(angle / 2) |r| more,
     # and the Frobenius norm of R_b - R_a is sqrt(2) times 2 sin(angle / 2).
     spin = np.sqrt((turn * turn).sum(axis=(1, 2)) * 0.5)
-    curvature = bounds.second @ np.outer(abs_delta, abs_delta).ravel()
     speed = np.sqrt((moved * moved).sum(axis=1)) + bounds.radii * spin + 0.5 * curvature
     return float(speed.max())
 

@@ -20,6 +20,7 @@ from openup_ompl.hand_law import HandLaw, NormalizedDistance
 from openup_ompl.motion_bound import (
     arm_weights,
     body_bounds,
+    body_curvature,
     distance_rates,
     hand_rate,
     local_rate_terms,
@@ -189,10 +190,8 @@ class CoupledChecker:
     def _palm_point(self, arm: np.ndarray) -> list[float]:
         """The palm's position [m] at an arm configuration."""
         context = self.world.context()
-        q, data = context.q, context.data
-        q[self._arm_sel] = arm
-        pin.forwardKinematics(self._model, data, q)
-        return pin.updateFramePlacement(self._model, data, self._palm).translation.tolist()
+        context.q[self._arm_sel] = arm
+        return self.robot.palm_placement(context.data, context.q).translation.tolist()
 
     def coupled_q(self, arm: np.ndarray) -> np.ndarray:
         """Full configuration for an arm configuration, the hand set by the law (a copy)."""
@@ -282,13 +281,20 @@ class CoupledChecker:
             (self.normalized_distance(a), self.normalized_distance(b)) if ends is None else ends
         )
         spread = float(self.distance_rates @ np.abs(b - a))
-        if 0.5 * (da + db - spread) > self.law.mga:
-            return self.plateau_weights
-        return self.motion_weights
+        return self.plateau_weights if self._on_plateau(da, db, spread) else self.motion_weights
 
-    def _motion_spread(self, a: np.ndarray, b: np.ndarray, abs_delta: np.ndarray) -> float:
+    def _on_plateau(self, da: float, db: float, spread: float) -> bool:
+        """Whether ``d`` stays above ``mga`` all along a motion whose ends have ``d`` =
+        ``da`` and ``db`` and along which ``d`` changes by at most ``spread`` per unit of
+        ``t``: ``d >= (da + db - spread) / 2`` everywhere on it."""
+        return 0.5 * (da + db - spread) > self.law.mga
+
+    def _motion_spread(
+        self, a: np.ndarray, b: np.ndarray, abs_delta: np.ndarray, spread: float | None = None
+    ) -> float:
         """How much ``d`` can change per unit of ``t`` along the motion ``a -> b`` with
-        ``abs_delta = |b - a|`` (at most :attr:`distance_rates` ``@ abs_delta``).
+        ``abs_delta = |b - a|``: at most ``spread``, the global bound
+        :attr:`distance_rates` ``@ abs_delta`` (computed if not given).
 
         The palm's speed bound of :func:`~openup_ompl.motion_bound.local_rate_terms`: its
         displacement between the motion's ends plus half a bound of its acceleration. Near
@@ -296,7 +302,8 @@ class CoupledChecker:
         retreat is bounded at 47 mm of palm motion instead of 180 mm, and the fingers'
         share of its displacement bound shrinks with it.
         """
-        spread = float(self.distance_rates @ abs_delta)
+        if spread is None:
+            spread = float(self.distance_rates @ abs_delta)
         if self._local_terms is None:
             return spread
         second, rotation = self._local_terms
@@ -305,20 +312,12 @@ class CoupledChecker:
         taylor += 0.5 * float(abs_delta @ second @ abs_delta)
         return min(spread, (taylor + turn) * self._inv_start)
 
-    def _local_may_pay(self, abs_delta: np.ndarray, arm: float) -> bool:
-        """Whether :meth:`_local_reach` may bound the arm's share well below ``arm`` (the
-        global bound): its curvature term, known without forward kinematics, stays under
-        :data:`ARM_TIGHTEN_FLOOR` times it."""
-        assert self._bodies is not None
-        curvature = self._bodies.second @ np.outer(abs_delta, abs_delta).ravel()
-        return 0.5 * float(curvature.max()) < ARM_TIGHTEN_FLOOR * arm
-
     def _local_reach(
-        self, a: np.ndarray, b: np.ndarray, abs_delta: np.ndarray, arm: float
+        self, a: np.ndarray, b: np.ndarray, curvature: np.ndarray, arm: float
     ) -> float:
         """The arm's share of the displacement bound of the motion ``a -> b``, tightened
-        from ``arm`` (the global bound) by the arm joints' placements at its two ends
-        (:func:`~openup_ompl.motion_bound.local_reach`), never below
+        from ``arm`` (the global bound) by the arm joints' placements at its two ends and
+        the bodies' ``curvature`` (:func:`~openup_ompl.motion_bound.local_reach`), never below
         :data:`ARM_TIGHTEN_FLOOR` times ``arm``; computed in the finest world's context
         (whose next check recomputes it)."""
         assert self._bodies is not None
@@ -331,7 +330,7 @@ class CoupledChecker:
             pin.forwardKinematics(model, data, q)
             placements = data.oMi.tolist()  # one call, not one per joint
             frames.append(np.array([placements[j].homogeneous for j in ids]))
-        local = local_reach(self._bodies, frames[0], frames[1], abs_delta)
+        local = local_reach(self._bodies, frames[0], frames[1], curvature)
         return min(arm, max(local, ARM_TIGHTEN_FLOOR * arm))
 
     def segment_count(
@@ -501,11 +500,11 @@ class CoupledChecker:
         if fingers_move:
             da = self._known_valid.get(a.tobytes())
             ends = (self.normalized_distance(a) if da is None else da, db)
-            fingers_move = 0.5 * (ends[0] + ends[1] - spread) <= mga
+            fingers_move = not self._on_plateau(*ends, spread)
         if fingers_move and self._local_terms is not None:
             # Bound d along this motion from its ends, tighter than the global rates.
-            spread = self._motion_spread(a, b, abs_delta)
-            fingers_move = 0.5 * (ends[0] + ends[1] - spread) <= mga
+            spread = self._motion_spread(a, b, abs_delta, spread)
+            fingers_move = not self._on_plateau(*ends, spread)
         plateau = not fingers_move
         # No robot point moves farther [m] per unit of t than the arm's share, plus the
         # fingers' (through d) where d may be at or below mga.
@@ -518,10 +517,15 @@ class CoupledChecker:
             window = min(max(window, 0.0), 1.0)
         pads = self._pads
         # The arm's share tightened from the motion's ends (local_reach) at once for a long
-        # motion, else only if the first pass does not settle it.
-        tighten = self._bodies is not None and self._local_may_pay(abs_delta, arm)
+        # motion, else only if the first pass does not settle it; only where it may pay:
+        # its curvature term, known without forward kinematics, stays under
+        # ARM_TIGHTEN_FLOOR times the global bound.
+        tighten = False
+        if self._bodies is not None:
+            curvature = body_curvature(self._bodies, abs_delta)
+            tighten = 0.5 * float(curvature.max()) < ARM_TIGHTEN_FLOOR * arm
         if tighten and arm + fingers * window > LOCAL_REACH_MIN_INTERVALS * 2.0 * pads[0]:
-            arm = self._local_reach(a, b, abs_delta, arm)
+            arm = self._local_reach(a, b, curvature, arm)
             tighten = False
         if pads[-1] <= 0.0:  # no padding: plain resolution checks, no guarantee
             n = max(1, math.ceil((arm + fingers) / self.resolution))
@@ -560,7 +564,7 @@ class CoupledChecker:
             if tighten:
                 tighten = False
                 if int(pieces.sum()) - pieces.size >= LOCAL_REACH_MIN_STATES:
-                    arm = self._local_reach(a, b, abs_delta, arm)
+                    arm = self._local_reach(a, b, curvature, arm)
                     continue
             owner = np.repeat(np.arange(open_.size), pieces - 1)
             first = np.cumsum(pieces - 1) - (pieces - 1)

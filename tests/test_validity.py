@@ -16,7 +16,13 @@ from openup_ompl import validity
 from openup_ompl._resources import data_dir
 from openup_ompl.benchmark import default_problems_dir
 from openup_ompl.collision import CollisionWorld
-from openup_ompl.motion_bound import body_bounds, hand_rate, local_reach, self_pair_factors
+from openup_ompl.motion_bound import (
+    body_bounds,
+    body_curvature,
+    hand_rate,
+    local_reach,
+    self_pair_factors,
+)
 from openup_ompl.validity import ARM_TIGHTEN_FLOOR, COARSE_LEVELS, CoupledChecker
 
 ompl_util.setLogLevel(ompl_util.LOG_ERROR)
@@ -192,7 +198,7 @@ def test_local_reach_bounds_every_point(robot_setup: oo.GraspPlanningSetup) -> N
         q = robot.full_q(a, rng.uniform(robot_setup.law.lower, robot_setup.law.upper))
         frames, points = _sweep_corners(robot, geometry_model, corners, q, b, t)
         abs_delta = np.abs(b - a)
-        bound = local_reach(bodies, frames[0], frames[1], abs_delta)
+        bound = local_reach(bodies, frames[0], frames[1], body_curvature(bodies, abs_delta))
         points_t = np.concatenate(list(points.values()), axis=1)  # (len(t), points, 3)
         for i in range(0, t.size, 5):
             moved = np.linalg.norm(points_t - points_t[i], axis=2).max(axis=1)
@@ -246,7 +252,7 @@ def test_self_pair_margins_cover_the_relative_motion(robot_setup: oo.GraspPlanni
         frames, points = _sweep_corners(robot, geometry_model, corners, q, b, t)
         abs_delta = np.abs(b - a)
         arm = float(abs_delta @ checker.plateau_weights)
-        local = local_reach(bodies, frames[0], frames[1], abs_delta)
+        local = local_reach(bodies, frames[0], frames[1], body_curvature(bodies, abs_delta))
         spacing = min(arm, max(local, ARM_TIGHTEN_FLOOR * arm))
         for p in pairs:
             pair = geometry_model.collisionPairs[p]
