@@ -12,6 +12,12 @@ and planner are drawn with matplotlib (the ``viz`` extra).
 Hand configurations: ``law`` is the paper's hand law; ``fixed`` is the classical fixed
 preshape, the hand frozen at ``w`` for the whole reach. In the database the fixed runs'
 planner is named ``<planner>_fixed_w``.
+
+OMPL's planners are given the goal region's pregrasp states
+(:attr:`~openup_ompl.planning.PlanningOptions.pregrasp`): their paths, as OMPL logs them,
+end there, so their ``solution length`` leaves out the certified straight approach
+(``pregrasp`` metres of palm motion) that :meth:`GraspPlanningSetup.solve
+<openup_ompl.planning.GraspPlanningSetup.solve>` appends; IKBiRRT's paths include its retreat.
 """
 
 from __future__ import annotations
@@ -220,6 +226,9 @@ def benchmark_run(
         dof = setup.problem.robot.arm_idx.size
         last = ss.getSolutionPath().getStates()[-1]
         arm = np.array([last[i] for i in range(dof)])
+        approach = setup.goal_region.approach(arm)
+        if approach.shape[0]:  # a pregrasp state: the hand at the grasp is at its end
+            arm = approach[-1]
         q = checker.coupled_q(arm)
         # Sum of the hand joints (for the Panda, the gap between the fingers [m]).
         record["final_aperture"] = float(np.sum(q[setup.problem.robot.hand_idx]))

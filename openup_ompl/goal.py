@@ -4,23 +4,33 @@
 sampleable goals (RRTConnect, BITstar, ...) samples goal states from it, each one a fresh
 inverse-kinematics solution computed during planning. A solution counts only if it is
 collision-free with the hand at ``open_hand(0)`` (the close preshape ``c``, or ``c + (w - c) u``
-with the open-arrival variant).
+with the open-arrival variant). With ``pregrasp > 0`` the samples are pregrasp states
+instead: each solution backed off along a certified straight retreat, whose approach
+completes the plan.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 from ompl import base as ob
 
-from openup_ompl.exceptions import UnreachableGrasp
+from openup_ompl.exceptions import ConfigError, UnreachableGrasp
 from openup_ompl.hand_law import ROTATION_WEIGHT, palm_distance
 from openup_ompl.ik import IKSolver
 from openup_ompl.validity import CoupledChecker
 
 #: Default goal threshold on that distance [m]: a goal state is within 1 mm and 0.01 rad.
 GOAL_THRESHOLD = 1e-3
+#: Palm displacement [m] of one step of a pregrasp retreat (IKBiRRT's ``retreat_step``).
+PREGRASP_STEP = 0.025
+
+
+def _is_number(value: object) -> bool:
+    """A finite int or float (not a bool)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
 class GraspGoal:
@@ -90,6 +100,32 @@ class GraspGoal:
             )
         return solution
 
+    def retreat(
+        self, root: np.ndarray, length: float, step: float, max_joint_step: float
+    ) -> list[np.ndarray]:
+        """The straight palm retreat from the grasp configuration ``root``: the palm backs
+        away against the robot's approach direction (``approach`` in the robot file) in
+        steps of ``step`` [m], up to ``length``, each motion checked with the law. A step
+        that collides, that IK cannot reach, or that moves the arm more than
+        ``max_joint_step`` [rad, Euclidean norm] (near a singularity) ends it.
+
+        Returns:
+            The configurations from ``root`` (first) to the retreat's end (last); only
+            ``root`` when no step was free. Read backwards, a certified straight approach.
+        """
+        offset = -step * self.checker.robot.spec.approach
+        chain = [root]
+        q = root
+        for _ in range(math.ceil(length / step - 1e-9)):
+            nxt = self.ik.palm_step(q, offset)
+            if nxt is None or float(np.linalg.norm(nxt - q)) > max_joint_step:
+                break
+            if not self.checker.check_motion(q, nxt):
+                break
+            chain.append(nxt)
+            q = nxt
+        return chain
+
     def task_error(self, arm: np.ndarray) -> float:
         """Task-space distance to the grasp [m]: position error plus
         :data:`ROTATION_WEIGHT` times the rotation error."""
@@ -110,21 +146,59 @@ class IKGoalRegion(ob.GoalSampleableRegion):
     solution; when a call's restarts all fail it returns one found earlier, so every
     sampled state is a true goal. One solution is found at construction: an unreachable
     grasp raises :class:`UnreachableGrasp` before any planner runs. ``distanceGoal`` is the
-    task-space distance (see :meth:`GraspGoal.distance`), the threshold
+    task-space distance (see :meth:`GraspGoal.task_error`), the threshold
     :data:`GOAL_THRESHOLD`.
+
+    **Pregrasp goals** (``pregrasp > 0``): each IK solution is backed off first, the palm
+    retreating straight against the approach direction by up to ``pregrasp`` metres
+    (:meth:`GraspGoal.retreat`, every step checked with the law), and ``sampleGoal``
+    returns the retreat's end: the classical pregrasp-and-approach that IKBiRRT's goal tree
+    grows too. Near the grasp the law holds the fingers millimetres from the object, and a
+    planner's random extensions from a grasp configuration almost all collide; from the
+    pregrasp they do not. The goal is then the grasp configurations *and* the pregrasp
+    states sampled so far (``distanceGoal`` is 0 on those), and a path a planner returns
+    ends at the grasp only once :meth:`approach` of its last state is appended (a
+    certified straight motion; :meth:`GraspPlanningSetup.solve
+    <openup_ompl.planning.GraspPlanningSetup.solve>` does it).
 
     Args:
         si: OMPL space information over the arm joints.
         goal: The numpy-level goal.
         max_samples: ``maxSampleCount()``: how many goal samples a planner may draw.
+        pregrasp: Length [m] of the retreat from each sampled grasp configuration (0: the
+            grasp configurations themselves are the samples).
+        pregrasp_step: Palm displacement [m] of one retreat step.
+        max_joint_step: Arm motion [rad, Euclidean norm] one retreat step may not exceed.
+
+    Raises:
+        ConfigError: A negative or non-finite ``pregrasp``, or a non-positive step.
+        UnreachableGrasp: No collision-free IK solution of the grasp pose was found.
     """
 
-    def __init__(self, si: ob.SpaceInformation, goal: GraspGoal, max_samples: int = 10_000) -> None:
+    def __init__(
+        self,
+        si: ob.SpaceInformation,
+        goal: GraspGoal,
+        max_samples: int = 10_000,
+        pregrasp: float = 0.0,
+        pregrasp_step: float = PREGRASP_STEP,
+        max_joint_step: float = 0.3,
+    ) -> None:
+        if not (_is_number(pregrasp) and pregrasp >= 0):
+            raise ConfigError("pregrasp", pregrasp, "a distance >= 0 [m]")
+        for name, value in (("pregrasp_step", pregrasp_step), ("max_joint_step", max_joint_step)):
+            if not (_is_number(value) and value > 0):
+                raise ConfigError(name, value, "a positive step")
         super().__init__(si)
         self.goal = goal
         self.max_samples = int(max_samples)
+        self.pregrasp = float(pregrasp)
+        self.pregrasp_step = float(pregrasp_step)
+        self.max_joint_step = float(max_joint_step)
         self.setThreshold(GOAL_THRESHOLD)
         self._n = goal.checker.robot.arm_idx.size
+        # Pregrasp state (bytes) -> its retreat, grasp first; grasp state (bytes) -> same.
+        self._retreats: dict[bytes, list[np.ndarray]] = {}
         goal.ensure_solution()
 
     def sampleGoal(self, state: ob.State) -> None:  # noqa: N802 - OMPL's name
@@ -132,7 +206,36 @@ class IKGoalRegion(ob.GoalSampleableRegion):
         if arm is None:
             solutions = self.goal.solutions
             arm = solutions[int(self.goal.rng.integers(len(solutions)))]
+        if self.pregrasp > 0:
+            arm = self._pregrasp_of(arm)
         state[0 : self._n] = arm.tolist()
+
+    def _pregrasp_of(self, grasp: np.ndarray) -> np.ndarray:
+        chain = self._retreats.get(grasp.tobytes())
+        if chain is None:
+            chain = self.goal.retreat(grasp, self.pregrasp, self.pregrasp_step, self.max_joint_step)
+            self._retreats[grasp.tobytes()] = chain
+            self._retreats[chain[-1].tobytes()] = chain
+        return chain[-1]
+
+    def is_pregrasp(self, arm: np.ndarray | Sequence[float]) -> bool:
+        """Whether ``arm`` (bit for bit) is a pregrasp state this region sampled."""
+        key = np.asarray(arm, dtype=float).tobytes()
+        chain = self._retreats.get(key)
+        return chain is not None and len(chain) > 1 and chain[-1].tobytes() == key
+
+    def approach(self, arm: np.ndarray | Sequence[float]) -> np.ndarray:
+        """The certified straight approach from a sampled pregrasp state ``arm`` to its
+        grasp configuration: ``(k, dof)``, ``arm`` itself left out, the grasp last; empty
+        (``(0, dof)``) when ``arm`` is not a pregrasp state of this region."""
+        if not self.is_pregrasp(arm):
+            return np.empty((0, self._n))
+        chain = self._retreats[np.asarray(arm, dtype=float).tobytes()]
+        return np.array(chain[-2::-1])
+
+    def forget(self) -> None:
+        """Drop the pregrasp states sampled so far (a new run samples its own)."""
+        self._retreats.clear()
 
     def maxSampleCount(self) -> int:  # noqa: N802 - OMPL's name
         return self.max_samples
@@ -141,5 +244,8 @@ class IKGoalRegion(ob.GoalSampleableRegion):
         return True
 
     def distanceGoal(self, state: ob.State) -> float:  # noqa: N802 - OMPL's name
-        value = self.goal.task_error(np.array(state[0 : self._n]))
+        arm = np.array(state[0 : self._n])
+        if self._retreats and self.is_pregrasp(arm):
+            return 0.0
+        value = self.goal.task_error(arm)
         return value if math.isfinite(value) else math.inf

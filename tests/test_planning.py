@@ -12,6 +12,7 @@ from recheck import assert_plan_rechecks, solved_and_rechecked
 
 import openup_ompl as oo
 from openup_ompl.benchmark import default_problems_dir
+from openup_ompl.goal import GOAL_THRESHOLD
 
 SCENES = Path(__file__).resolve().parent / "scenes"
 SEEDS = range(20)
@@ -374,3 +375,82 @@ def test_final_check_skips_certified_motions_only(default_setup: oo.GraspPlannin
     default_setup.verify(path, np.array([0, 2]))  # row 1 left out: passes
     with pytest.raises(oo.VerifyFailed, match="row 1 collides"):
         default_setup.verify(path, np.array([0, 1]))
+
+
+def _palm_offset(setup: oo.GraspPlanningSetup, arm: np.ndarray) -> tuple[float, float, float]:
+    """The palm at ``arm`` in the grasp frame: its displacement along the approach axis,
+    its distance off that axis [m], and its rotation angle [rad]."""
+    robot = setup.problem.robot
+    palm = robot.palm_placement(robot.model.createData(), robot.full_q(arm, setup.law(0.0)))
+    offset = setup.problem.grasp.actInv(palm)
+    along = float(offset.translation @ robot.spec.approach)
+    off_axis = float(np.linalg.norm(offset.translation - along * robot.spec.approach))
+    return along, off_axis, float(np.linalg.norm(pin.log3(offset.rotation)))
+
+
+def test_pregrasp_goal_samples_back_off_along_a_certified_approach(
+    default_problem: oo.Problem,
+) -> None:
+    """With ``pregrasp`` the goal region samples pregrasp states: the palm 0.1 m back from
+    the grasp against the approach axis, orientation held; ``distanceGoal`` is 0 there,
+    and ``approach`` leads to a grasp configuration through motions the checker
+    certified. Without it, and after ``forget``, the same state is no goal."""
+    setup = oo.GraspPlanningSetup(default_problem, pregrasp=0.1)
+    region, checker = setup.goal_region, setup.checker
+    dof = default_problem.robot.arm_idx.size
+    state = setup.space_information.allocState()
+    for _ in range(3):
+        region.sampleGoal(state)
+        arm = np.array(state[0:dof])
+        assert region.is_pregrasp(arm) and region.distanceGoal(state) == 0.0
+        assert region.isSatisfied(state)
+        along, off_axis, angle = _palm_offset(setup, arm)
+        assert -0.101 < along < -0.07 and off_axis < 0.01 and angle < 0.05
+        approach = region.approach(arm)
+        assert 1 <= approach.shape[0] <= 4 and approach.shape[1] == dof
+        assert setup.goal.task_error(approach[-1]) <= GOAL_THRESHOLD
+        motions = np.vstack([arm, approach])
+        assert all(
+            checker.is_certified(a, b) for a, b in zip(motions[:-1], motions[1:], strict=True)
+        )
+    assert region.approach(approach[-1]).shape == (0, dof)  # a grasp has no approach
+    region.forget()
+    assert not region.is_pregrasp(arm) and region.distanceGoal(state) > 0.05
+    plain = oo.GraspPlanningSetup(default_problem, pregrasp=0.0).goal_region
+    plain.sampleGoal(state)
+    assert plain.distanceGoal(state) <= GOAL_THRESHOLD
+    assert plain.approach(np.array(state[0:dof])).shape == (0, dof)
+
+
+def test_ompl_planners_reach_the_grasp_through_the_pregrasp(tmp_path: Path) -> None:
+    """``rrtconnect`` plans to a pregrasp state and ``solve`` appends the approach: the
+    plan's last waypoints slide the palm straight onto the grasp, every plan re-checks, and
+    on a tall shelf (the law's close hand millimetres from the object at the grasp) the
+    planner checks far fewer states than when given the grasp configurations."""
+    problem = oo.load_scene(default_problems_dir("panda") / "shelf_tall.toml")
+    checks = {}
+    for pregrasp in (0.1, 0.0):
+        setup = oo.GraspPlanningSetup(problem, pregrasp=pregrasp)
+        checks[pregrasp] = 0
+        for seed in range(3):
+            plan = setup.solve(30.0, "rrtconnect", seed=seed)
+            assert_plan_rechecks(plan, tmp_path / f"pregrasp{pregrasp}_{seed}.json")
+            checks[pregrasp] += plan.stats["state_checks"]
+            appended = plan.stats["approach_states"]
+            if pregrasp == 0.0:
+                assert appended == 0
+                continue
+            assert 1 <= appended <= 4
+            for arm in plan.waypoints[-appended - 1 :]:
+                along, off_axis, angle = _palm_offset(setup, arm)
+                assert -0.101 < along <= 1e-3 and off_axis < 0.01 and angle < 0.05
+    assert checks[0.1] < checks[0.0] / 2
+
+
+@pytest.mark.parametrize("value", [-0.1, float("nan"), float("inf"), True])
+def test_bad_pregrasp_is_named(default_problem: oo.Problem, value: object) -> None:
+    with pytest.raises(oo.ConfigError, match="pregrasp"):
+        oo.PlanningOptions(pregrasp=value)  # type: ignore[arg-type]
+    setup = oo.GraspPlanningSetup(default_problem)
+    with pytest.raises(oo.ConfigError, match="pregrasp"):
+        oo.IKGoalRegion(setup.space_information, setup.goal, pregrasp=value)  # type: ignore[arg-type]

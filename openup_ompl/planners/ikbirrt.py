@@ -303,24 +303,16 @@ class IKBiRRT(ob.Planner):
 
     def _retreat(self, goal: GraspGoal, tree: _Tree, root: int) -> int:
         """Grow the straight palm retreat from the goal root ``root`` (see the module
-        docstring); a step that collides, that IK cannot reach, or that takes more than
-        one ``max_step`` of joint motion (near a singularity) ends it. Returns the index of
-        its last vertex (the root itself when no step was free)."""
+        docstring and :meth:`GraspGoal.retreat`). Returns the index of its last vertex (the
+        root itself when no step was free)."""
         options = self.options
-        checker = goal.checker
-        steps = math.ceil(options.retreat / options.retreat_step - 1e-9)
-        offset = -options.retreat_step * checker.robot.spec.approach
+        chain = goal.retreat(
+            tree.nodes[root].copy(), options.retreat, options.retreat_step, options.max_step
+        )
         index = root
-        q = tree.nodes[root].copy()
-        for _ in range(steps):
-            nxt = goal.ik.palm_step(q, offset)
-            if nxt is None or float(np.linalg.norm(nxt - q)) > options.max_step:
-                return index
-            if not checker.check_motion(q, nxt):
-                return index
-            index = tree.add(nxt, index)
-            self.retreat_vertices += 1
-            q = nxt
+        for q in chain[1:]:
+            index = tree.add(q, index)
+        self.retreat_vertices += len(chain) - 1
         return index
 
     def _extend(
