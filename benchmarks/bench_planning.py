@@ -14,7 +14,9 @@ joint-space path length (sum of the norms of the steps of ``plan.arm_path``), an
 ``plan.stats`` (state checks, IK calls).
 
 The planner name ``ikbirrt-plain`` is IKBiRRT without the goal tree's retreat
-(``IKBiRRTOptions(retreat=0)``), to measure what the retreat buys side by side.
+(``IKBiRRTOptions(retreat=0)``), and ``rrtconnect-plain`` OMPL's RRTConnect given the grasp
+configurations instead of the goal region's pregrasp states (``pregrasp=0``), to measure
+what the retreat and the pregrasp buy side by side.
 
 Run (about 20 s on 2 idle cores; at worst seeds x variants x time limit)::
 
@@ -23,6 +25,7 @@ Run (about 20 s on 2 idle cores; at worst seeds x variants x time limit)::
         --planners ikbirrt rrtconnect --fixed-hand w --json bench_planning.json
     python benchmarks/bench_planning.py --scene benchmarks/problems/panda/shelf_small.toml \
         --planners ikbirrt ikbirrt-plain --seeds 10
+    python benchmarks/bench_planning.py --planners rrtconnect rrtconnect-plain --seeds 20
 """
 
 from __future__ import annotations
@@ -45,6 +48,8 @@ import openup_ompl  # noqa: E402
 
 #: Bench-only planner name: IKBiRRT without the goal tree's retreat.
 PLAIN = "ikbirrt-plain"
+#: Bench-only planner name: RRTConnect given grasp configurations, not pregrasp states.
+RRTCONNECT_PLAIN = "rrtconnect-plain"
 
 
 def build_setups(
@@ -84,6 +89,10 @@ def run_once(
     if planner == PLAIN:
         options = openup_ompl.IKBiRRTOptions(retreat=0.0)
         instance = openup_ompl.IKBiRRT(setup.space_information, options)
+    pregrasp = setup.goal_region.pregrasp
+    if planner == RRTCONNECT_PLAIN:
+        instance = "rrtconnect"
+        setup.goal_region.pregrasp = 0.0
     try:
         plan = setup.solve(time_limit=time_limit, planner=instance, seed=seed)
     except openup_ompl.PlanningFailed as error:
@@ -95,6 +104,8 @@ def run_once(
             "state_checks": setup.checker.states_checked - checks_before,
             "ik_calls": setup.ik.calls - ik_before,
         }
+    finally:
+        setup.goal_region.pregrasp = pregrasp
     return {
         "success": True,
         "time_s": plan.solve_time_s,
@@ -145,7 +156,7 @@ def main() -> None:
         "--planners",
         nargs="+",
         default=["ikbirrt", "rrtconnect"],
-        help=f"planner names, from {list(openup_ompl.PLANNERS)} and {PLAIN}",
+        help=f"planner names, from {list(openup_ompl.PLANNERS)}, {PLAIN} and {RRTCONNECT_PLAIN}",
     )
     parser.add_argument("--seeds", type=int, default=20, help="seeds per variant (default 20)")
     parser.add_argument("--first-seed", type=int, default=0, help="first seed (default 0)")
@@ -172,7 +183,8 @@ def main() -> None:
     args = parser.parse_args()
     if args.seeds < 1 or not args.time_limit > 0:
         parser.error("--seeds must be >= 1 and --time-limit > 0")
-    unknown = [p for p in args.planners if p.lower() not in (*openup_ompl.PLANNERS, PLAIN)]
+    names = (*openup_ompl.PLANNERS, PLAIN, RRTCONNECT_PLAIN)
+    unknown = [p for p in args.planners if p.lower() not in names]
     if unknown:
         parser.error(f"unknown planners {unknown}: expected some of {list(openup_ompl.PLANNERS)}")
     fixed_hand = None if args.fixed_hand.lower() == "none" else args.fixed_hand

@@ -1,7 +1,8 @@
 """Speed over the problem suites: solve time, the law's price, the whole call, the command.
 
 For every shipped robot's problem suite (``benchmarks/problems/<robot>/``) it solves each
-problem with ``ikbirrt`` and ``rrtconnect`` (+ ``IKGoalRegion``), each with the hand law
+problem with ``ikbirrt`` and ``rrtconnect`` (+ ``IKGoalRegion``, whose pregrasp states it
+is given: ``PlanningOptions.pregrasp``), each with the hand law
 and with the classical fixed preshape (hand frozen at ``w``), side by side in one process:
 seed by seed, problem by problem, the four variants in an order that rotates from problem
 to problem. It reports, per robot, planner and hand:

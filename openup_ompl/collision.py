@@ -103,6 +103,10 @@ class ThreadContext:
     hand: np.ndarray
 
 
+#: Name prefix of the scene's geometries (obstacles and object) in a collision model.
+ENVIRONMENT_PREFIX = "env/"
+
+
 def build_collision_model(
     problem: Problem, environment: list[Shape] | None = None, padding: float = 0.0
 ) -> pin.GeometryModel:
@@ -121,7 +125,7 @@ def build_collision_model(
     padding = padding + robot.spec.padding
     for shape in shapes:
         geometry = pin.GeometryObject(
-            f"env/{shape.name}", 0, 0, shape.placement, shape.geometry(padding)
+            f"{ENVIRONMENT_PREFIX}{shape.name}", 0, 0, shape.placement, shape.geometry(padding)
         )
         model.addGeometryObject(geometry)
     for env in range(n_robot, model.ngeoms):
@@ -228,3 +232,9 @@ class CollisionWorld:
             )
             if result.isCollision()
         ]
+
+    def touches_environment(self, q: np.ndarray) -> bool:
+        """Whether ``q`` collides with an obstacle or the object (self-collision aside)."""
+        return any(
+            name.startswith(ENVIRONMENT_PREFIX) for pair in self.colliding_pairs(q) for name in pair
+        )

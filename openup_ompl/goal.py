@@ -155,11 +155,13 @@ class IKGoalRegion(ob.GoalSampleableRegion):
     returns the retreat's end: the classical pregrasp-and-approach that IKBiRRT's goal tree
     grows too. Near the grasp the law holds the fingers millimetres from the object, and a
     planner's random extensions from a grasp configuration almost all collide; from the
-    pregrasp they do not. The goal is then the grasp configurations *and* the pregrasp
-    states sampled so far (``distanceGoal`` is 0 on those), and a path a planner returns
-    ends at the grasp only once :meth:`approach` of its last state is appended (a
-    certified straight motion; :meth:`GraspPlanningSetup.solve
-    <openup_ompl.planning.GraspPlanningSetup.solve>` does it).
+    pregrasp they do not. A retreat cut short by an obstacle or the object ends pressed
+    against it, no freer than the grasp: the grasp configuration itself is then the
+    sample. The goal is the grasp configurations *and* the pregrasp states sampled so far
+    (``distanceGoal`` is 0 on those), and a path a planner returns ends at the grasp only
+    once :meth:`approach` of its last state is appended (a certified straight motion;
+    :meth:`GraspPlanningSetup.solve <openup_ompl.planning.GraspPlanningSetup.solve>` does
+    it).
 
     Args:
         si: OMPL space information over the arm joints.
@@ -197,6 +199,7 @@ class IKGoalRegion(ob.GoalSampleableRegion):
         self.max_joint_step = float(max_joint_step)
         self.setThreshold(GOAL_THRESHOLD)
         self._n = goal.checker.robot.arm_idx.size
+        self._steps = math.ceil(self.pregrasp / self.pregrasp_step - 1e-9)
         # Pregrasp state (bytes) -> its retreat, grasp first; grasp state (bytes) -> same.
         self._retreats: dict[bytes, list[np.ndarray]] = {}
         goal.ensure_solution()
@@ -214,9 +217,20 @@ class IKGoalRegion(ob.GoalSampleableRegion):
         chain = self._retreats.get(grasp.tobytes())
         if chain is None:
             chain = self.goal.retreat(grasp, self.pregrasp, self.pregrasp_step, self.max_joint_step)
+            if len(chain) - 1 < self._steps and self._blocked_by_scene(chain[-1]):
+                chain = chain[:1]
             self._retreats[grasp.tobytes()] = chain
             self._retreats[chain[-1].tobytes()] = chain
         return chain[-1]
+
+    def _blocked_by_scene(self, arm: np.ndarray) -> bool:
+        """Whether the palm's next step back from ``arm`` runs into an obstacle or the
+        object: a retreat stopped there ends pressed against the scene, no freer than the
+        grasp itself (a retreat stopped by the robot's own links, by IK or by a joint-space
+        jump is not)."""
+        checker = self.goal.checker
+        nxt = self.goal.ik.palm_step(arm, -self.pregrasp_step * checker.robot.spec.approach)
+        return nxt is not None and checker.finest_world.touches_environment(checker.coupled_q(nxt))
 
     def is_pregrasp(self, arm: np.ndarray | Sequence[float]) -> bool:
         """Whether ``arm`` (bit for bit) is a pregrasp state this region sampled."""

@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
-from openup_ompl.collision import _without_warm_start
+from openup_ompl.collision import ENVIRONMENT_PREFIX, _without_warm_start
 from openup_ompl.exceptions import ConfigError, InvalidProblem
 from openup_ompl.grasp_quality import (
     DEFAULT_FRICTION,
@@ -220,7 +220,9 @@ class HandCloser:
         self._shapes: list[Shape] = shapes
         for shape in shapes:
             self.geometry_model.addGeometryObject(
-                pin.GeometryObject(f"env/{shape.name}", 0, 0, shape.placement, shape.geometry())
+                pin.GeometryObject(
+                    f"{ENVIRONMENT_PREFIX}{shape.name}", 0, 0, shape.placement, shape.geometry()
+                )
             )
         self._fingers: list[_Finger] = []
         for index in range(n_robot):

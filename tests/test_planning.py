@@ -454,3 +454,33 @@ def test_bad_pregrasp_is_named(default_problem: oo.Problem, value: object) -> No
     setup = oo.GraspPlanningSetup(default_problem)
     with pytest.raises(oo.ConfigError, match="pregrasp"):
         oo.IKGoalRegion(setup.space_information, setup.goal, pregrasp=value)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(("name", "blocked"), [("ur5_allegro/box", True), ("lwa3_sdh/cage", False)])
+def test_a_retreat_blocked_by_the_scene_gives_the_grasp_itself(name: str, blocked: bool) -> None:
+    """In the UR5's bin the palm's way back drives the wrist into the bin's wall after
+    3 steps: that retreat's end is pressed against the scene, and the region samples the
+    grasp configuration itself. In the LWA3's cage the retreat stops at the arm's own
+    links: its end is still the pregrasp."""
+    robot, stem = name.split("/")
+    setup = oo.GraspPlanningSetup(oo.load_scene(default_problems_dir(robot) / f"{stem}.toml"))
+    region, world = setup.goal_region, setup.checker.finest_world
+    dof = setup.problem.robot.arm_idx.size
+    state = setup.space_information.allocState()
+    for _ in range(3):
+        region.sampleGoal(state)
+        arm = np.array(state[0:dof])
+        chain = setup.goal.retreat(arm, 0.1, 0.025, 0.3)  # from the sample, when a grasp
+        if blocked:
+            assert not region.is_pregrasp(arm)
+            assert setup.goal.task_error(arm) <= GOAL_THRESHOLD
+            assert len(chain) - 1 < 4  # cut short ...
+            step = setup.ik.palm_step(chain[-1], -0.025 * setup.problem.robot.spec.approach)
+            assert world.touches_environment(setup.checker.coupled_q(step))  # ... by the bin
+        else:
+            assert region.is_pregrasp(arm) and 2 <= region.approach(arm).shape[0] < 4
+            grasp = region.approach(arm)[-1]
+            step = setup.ik.palm_step(arm, -0.025 * setup.problem.robot.spec.approach)
+            q = setup.checker.coupled_q(step)
+            assert world.colliding_pairs(q) and not world.touches_environment(q)
+            assert setup.goal.task_error(grasp) <= GOAL_THRESHOLD
