@@ -157,6 +157,12 @@ class CollisionWorld:
         self.geometry_model = build_collision_model(problem, environment, self.padding)
         #: Each collision pair's security margin (:func:`self_margins`).
         self.margins = self_margins(problem, self.geometry_model, self.padding)
+        names = [g.name for g in self.geometry_model.geometryObjects]
+        self._environment_pairs = [
+            k
+            for k, pair in enumerate(self.geometry_model.collisionPairs)
+            if names[pair.second].startswith(ENVIRONMENT_PREFIX)
+        ]
         self.num_threads = max(1, num_threads or len(os.sched_getaffinity(0)))
         self._local = threading.local()
         self._pool: Any = None
@@ -235,6 +241,10 @@ class CollisionWorld:
 
     def touches_environment(self, q: np.ndarray) -> bool:
         """Whether ``q`` collides with an obstacle or the object (self-collision aside)."""
-        return any(
-            name.startswith(ENVIRONMENT_PREFIX) for pair in self.colliding_pairs(q) for name in pair
+        context = self.context()
+        geometry_data = context.geometry_data
+        pin.computeCollisions(
+            self.model, context.data, self.geometry_model, geometry_data, q, False
         )
+        results = geometry_data.collisionResults
+        return any(results[k].isCollision() for k in self._environment_pairs)

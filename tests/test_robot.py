@@ -87,6 +87,26 @@ def test_collision_world_detects_an_obstacle_at_the_palm(panda, empty_scene_text
     q = panda.full_q(panda.spec.home, problem.hand_law(1.0))
     assert world.in_collision(q)
     assert any("env/ball" in pair for pair in world.colliding_pairs(q))
+    assert world.touches_environment(q)
+
+
+def test_touches_environment_tells_the_scene_from_the_robot_itself(
+    panda, default_scene_text, write_file
+):
+    """``touches_environment`` is true exactly where a colliding pair names an obstacle or
+    the object, on random Panda states of the demo scene: among them states that collide
+    with the scene, and states that collide with the robot only."""
+    problem = ou.load_scene(write_file("scene.toml", default_scene_text), robot=panda)
+    world = CollisionWorld(problem, num_threads=1)
+    rng = np.random.default_rng(5)
+    kinds = set()
+    for _ in range(300):
+        q = panda.full_q(rng.uniform(panda.arm_lower, panda.arm_upper), problem.hand_law(1.0))
+        pairs = world.colliding_pairs(q)
+        scene = any(name.startswith("env/") for pair in pairs for name in pair)
+        assert world.touches_environment(q) == scene
+        kinds.add((bool(pairs), scene))
+    assert kinds == {(False, False), (True, False), (True, True)}
 
 
 def test_srdf_prunes_self_collision_pairs(panda):
