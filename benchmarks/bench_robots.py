@@ -137,7 +137,10 @@ def main() -> None:
                 f"{r['geometries']} / {r['self_pairs']}",
                 f"{r['state_check_us']:.1f}",
                 ratio,
-                *(f"{r[p]['median_s']:.2f} ({r[p]['solved']}/{r[p]['seeds']})" for p in PLANNERS),
+                *(
+                    f"{1e3 * r[p]['median_s']:.1f} ({r[p]['solved']}/{r[p]['seeds']})"
+                    for p in PLANNERS
+                ),
             ]
         )
     print(_common.machine_line(info))
@@ -152,7 +155,7 @@ def main() -> None:
                 "geoms / self pairs",
                 "state check [us]",
                 "x Panda",
-                *(f"{p} median [s] (solved)" for p in PLANNERS),
+                *(f"{p} median [ms] (solved)" for p in PLANNERS),
             ],
             rows,
             left=2,
