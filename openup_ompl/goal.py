@@ -199,7 +199,6 @@ class IKGoalRegion(ob.GoalSampleableRegion):
         self.max_joint_step = float(max_joint_step)
         self.setThreshold(GOAL_THRESHOLD)
         self._n = goal.checker.robot.arm_idx.size
-        self._steps = math.ceil(self.pregrasp / self.pregrasp_step - 1e-9)
         # Pregrasp state (bytes) -> its retreat, grasp first; grasp state (bytes) -> same.
         self._retreats: dict[bytes, list[np.ndarray]] = {}
         goal.ensure_solution()
@@ -217,7 +216,8 @@ class IKGoalRegion(ob.GoalSampleableRegion):
         chain = self._retreats.get(grasp.tobytes())
         if chain is None:
             chain = self.goal.retreat(grasp, self.pregrasp, self.pregrasp_step, self.max_joint_step)
-            if len(chain) - 1 < self._steps and self._blocked_by_scene(chain[-1]):
+            steps = math.ceil(self.pregrasp / self.pregrasp_step - 1e-9)
+            if len(chain) - 1 < steps and self._blocked_by_scene(chain[-1]):
                 chain = chain[:1]
             self._retreats[grasp.tobytes()] = chain
             self._retreats[chain[-1].tobytes()] = chain
