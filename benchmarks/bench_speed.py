@@ -73,8 +73,10 @@ def run_suites(
     time_limit: float,
     recheck_every: int,
     fixed: list[str],
+    options: oo.PlanningOptions | None = None,
 ) -> tuple[list[dict[str, Any]], list[Any]]:
-    """Every run's record, and the plans kept for the re-check."""
+    """Every run's record, and the plans kept for the re-check (``options``: the setups'
+    planning options, the fixed hand aside; ``None``: the package's defaults)."""
     hands = hands_of(fixed)
     setups: dict[tuple[str, str], oo.GraspPlanningSetup] = {}
     for robot in robots:
@@ -82,7 +84,7 @@ def run_suites(
             problem = oo.load_scene(path)
             for hand in hands:
                 setups[(f"{robot}.{path.stem}", hand)] = oo.GraspPlanningSetup(
-                    problem, fixed_hand=None if hand == "law" else hand.split()[1]
+                    problem, options, fixed_hand=None if hand == "law" else hand.split()[1]
                 )
     variants = [(hand, planner) for hand in hands for planner in planners]
     problems = sorted({name for name, _ in setups})
@@ -259,6 +261,12 @@ def main() -> None:
         choices=["c", "b", "w"],
         help="fixed preshapes to compare the law with (default w; the targets are for w)",
     )
+    parser.add_argument(
+        "--pregrasp",
+        type=float,
+        help="the goal region's pregrasp distance [m] for rrtconnect (default: the package's)",
+    )
+    parser.add_argument("--continuous", action="store_true", help="the law without the jump at mga")
     parser.add_argument("--json", metavar="PATH", help="also write the results as JSON")
     args = parser.parse_args()
     if args.seeds < 1 or args.time <= 0 or args.recheck_every < 1 or args.cli_runs < 0:
@@ -268,12 +276,19 @@ def main() -> None:
             parser.error(f"--robots: {robot!r} is not one of {sorted(MEDIAN_TARGET_MS)}")
     for planner in args.planners:
         check_planner(planner)
+    try:
+        options = oo.PlanningOptions(
+            pregrasp=oo.PlanningOptions.pregrasp if args.pregrasp is None else args.pregrasp,
+            continuous=True if args.continuous else None,
+        )
+    except oo.ConfigError as error:
+        parser.error(str(error))
     ou.RNG.setSeed(1)
     ou.setLogLevel(ou.LogLevel.LOG_NONE)
     info = _common.machine_info()
 
     runs, kept = run_suites(
-        args.robots, args.planners, args.seeds, args.time, args.recheck_every, args.fixed
+        args.robots, args.planners, args.seeds, args.time, args.recheck_every, args.fixed, options
     )
     summary = summarize(runs, args.robots, args.planners, args.fixed)
     checked, passed = _common.recheck_plans(kept)
