@@ -72,7 +72,12 @@ def number(value: Any, where: str, *, low: float | None = None, high: float | No
             and (high is None or value <= high)
         )
     if not ok:
-        span = f" in [{low}, {high}]" if low is not None or high is not None else ""
+        if low is not None and high is not None:
+            span = f" in [{low}, {high}]"
+        elif low is not None:
+            span = f" >= {low}"
+        else:
+            span = "" if high is None else f" <= {high}"
         raise ConfigError(where, value, f"a finite number{span}")
     return float(value)
 
