@@ -17,6 +17,7 @@ from collections.abc import Sequence
 import numpy as np
 from ompl import base as ob
 
+from openup_ompl import _toml
 from openup_ompl.exceptions import ConfigError, UnreachableGrasp
 from openup_ompl.hand_law import ROTATION_WEIGHT, palm_distance
 from openup_ompl.ik import IKSolver
@@ -26,11 +27,6 @@ from openup_ompl.validity import CoupledChecker
 GOAL_THRESHOLD = 1e-3
 #: Palm displacement [m] of one step of a pregrasp retreat (IKBiRRT's ``retreat_step``).
 PREGRASP_STEP = 0.025
-
-
-def _is_number(value: object) -> bool:
-    """A finite int or float (not a bool)."""
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
 class GraspGoal:
@@ -186,15 +182,13 @@ class IKGoalRegion(ob.GoalSampleableRegion):
         pregrasp_step: float = PREGRASP_STEP,
         max_joint_step: float = 0.3,
     ) -> None:
-        if not (_is_number(pregrasp) and pregrasp >= 0):
-            raise ConfigError("pregrasp", pregrasp, "a distance >= 0 [m]")
         for name, value in (("pregrasp_step", pregrasp_step), ("max_joint_step", max_joint_step)):
-            if not (_is_number(value) and value > 0):
+            if _toml.number(value, name) <= 0:
                 raise ConfigError(name, value, "a positive step")
         super().__init__(si)
         self.goal = goal
         self.max_samples = int(max_samples)
-        self.pregrasp = float(pregrasp)
+        self.pregrasp = _toml.number(pregrasp, "pregrasp", low=0.0)
         self.pregrasp_step = float(pregrasp_step)
         self.max_joint_step = float(max_joint_step)
         self.setThreshold(GOAL_THRESHOLD)
@@ -232,20 +226,24 @@ class IKGoalRegion(ob.GoalSampleableRegion):
         nxt = self.goal.ik.palm_step(arm, -self.pregrasp_step * checker.robot.spec.approach)
         return nxt is not None and checker.finest_world.touches_environment(checker.coupled_q(nxt))
 
-    def is_pregrasp(self, arm: np.ndarray | Sequence[float]) -> bool:
-        """Whether ``arm`` (bit for bit) is a pregrasp state this region sampled."""
+    def _retreat_to(self, arm: np.ndarray | Sequence[float]) -> list[np.ndarray] | None:
+        """The retreat that ends at ``arm`` (bit for bit) if it is a sampled pregrasp."""
         key = np.asarray(arm, dtype=float).tobytes()
         chain = self._retreats.get(key)
-        return chain is not None and len(chain) > 1 and chain[-1].tobytes() == key
+        return (
+            chain if chain is not None and len(chain) > 1 and chain[-1].tobytes() == key else None
+        )
+
+    def is_pregrasp(self, arm: np.ndarray | Sequence[float]) -> bool:
+        """Whether ``arm`` (bit for bit) is a pregrasp state this region sampled."""
+        return self._retreat_to(arm) is not None
 
     def approach(self, arm: np.ndarray | Sequence[float]) -> np.ndarray:
         """The certified straight approach from a sampled pregrasp state ``arm`` to its
         grasp configuration: ``(k, dof)``, ``arm`` itself left out, the grasp last; empty
         (``(0, dof)``) when ``arm`` is not a pregrasp state of this region."""
-        if not self.is_pregrasp(arm):
-            return np.empty((0, self._n))
-        chain = self._retreats[np.asarray(arm, dtype=float).tobytes()]
-        return np.array(chain[-2::-1])
+        chain = self._retreat_to(arm)
+        return np.empty((0, self._n)) if chain is None else np.array(chain[-2::-1])
 
     def forget(self) -> None:
         """Drop the pregrasp states sampled so far (a new run samples its own)."""

@@ -19,6 +19,7 @@ import numpy as np
 from ompl import base as ob
 from ompl import geometric as og
 
+from openup_ompl import _toml
 from openup_ompl.exceptions import ConfigError, InvalidProblem, PlanningFailed, VerifyFailed
 from openup_ompl.goal import GOAL_THRESHOLD, GraspGoal, IKGoalRegion
 from openup_ompl.hand_law import HandLaw
@@ -182,12 +183,7 @@ class PlanningOptions:
             raise ConfigError("max_goal_samples", self.max_goal_samples, "an integer >= 1")
         if not (isinstance(self.planner_range, (int, float)) and 0 < self.planner_range < math.inf):
             raise ConfigError("planner_range", self.planner_range, "a positive step [rad]")
-        if not (
-            isinstance(self.pregrasp, (int, float))
-            and not isinstance(self.pregrasp, bool)
-            and 0 <= self.pregrasp < math.inf
-        ):
-            raise ConfigError("pregrasp", self.pregrasp, "a distance >= 0 [m]")
+        _toml.number(self.pregrasp, "pregrasp", low=0.0)
 
 
 class GraspPlanningSetup:
