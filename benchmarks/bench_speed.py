@@ -66,6 +66,11 @@ def hands_of(fixed: list[str]) -> list[str]:
     return ["law"] + [f"fixed {preshape}" for preshape in fixed]
 
 
+def preshape_of(hand: str) -> str | None:
+    """The fixed preshape of a hand of :func:`hands_of` (``None`` for the law)."""
+    return None if hand == "law" else hand.split()[1]
+
+
 def run_suites(
     robots: list[str],
     planners: list[str],
@@ -84,7 +89,7 @@ def run_suites(
             problem = oo.load_scene(path)
             for hand in hands:
                 setups[(f"{robot}.{path.stem}", hand)] = oo.GraspPlanningSetup(
-                    problem, options, fixed_hand=None if hand == "law" else hand.split()[1]
+                    problem, options, fixed_hand=preshape_of(hand)
                 )
     variants = [(hand, planner) for hand in hands for planner in planners]
     problems = sorted({name for name, _ in setups})
@@ -264,7 +269,9 @@ def main() -> None:
     parser.add_argument(
         "--pregrasp",
         type=float,
-        help="the goal region's pregrasp distance [m] for rrtconnect (default: the package's)",
+        default=oo.PlanningOptions.pregrasp,
+        help="the goal region's pregrasp distance [m] for rrtconnect (default: the package's, "
+        "%(default)s)",
     )
     parser.add_argument("--continuous", action="store_true", help="the law without the jump at mga")
     parser.add_argument("--json", metavar="PATH", help="also write the results as JSON")
@@ -278,8 +285,7 @@ def main() -> None:
         check_planner(planner)
     try:
         options = oo.PlanningOptions(
-            pregrasp=oo.PlanningOptions.pregrasp if args.pregrasp is None else args.pregrasp,
-            continuous=True if args.continuous else None,
+            pregrasp=args.pregrasp, continuous=True if args.continuous else None
         )
     except oo.ConfigError as error:
         parser.error(str(error))
@@ -313,7 +319,7 @@ def main() -> None:
             [
                 robot,
                 planner,
-                "law" if hand == "law" else f"fixed `{hand.split()[1]}`",
+                "law" if hand == "law" else f"fixed `{preshape_of(hand)}`",
                 f"{cell['solved']}/{cell['runs']}",
                 f"{cell['median_ms']:.1f}",
                 f"{cell['p95_ms']:.0f}",
@@ -344,12 +350,12 @@ def main() -> None:
         [
             robot,
             planner,
-            f"`{hand.split()[1]}`",
+            f"`{preshape_of(hand)}`",
             f"{price['suite']:.2f}",
             f"{price['per_problem_median']:.2f}",
             f"{price['per_problem_max']:.2f}",
             f"{price['paired_geomean']:.2f}",
-            f"≤ {PRICE_TARGET.get(planner, 1.2):g}" if hand == "fixed w" else "",
+            f"≤ {PRICE_TARGET.get(planner, 1.2):g}" if preshape_of(hand) == "w" else "",
         ]
         for (robot, planner, hand), price in summary["prices"].items()
     ]
