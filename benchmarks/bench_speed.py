@@ -15,8 +15,9 @@ to problem. It reports, per robot, planner and hand:
 
 then the law's price (law / fixed-``w`` suite medians, the median over problems of the
 per-problem ratio of medians, and the geometric mean over runs of the ratio of the law's run
-to the fixed hand's with the same problem and seed; ``--fixed w b`` adds the fixed ``b``
-preshape beside ``w``),
+to the fixed hand's with the same problem and seed, split into the ratio of motions
+checked, the search's size with the hand's shape, and of state checks per motion, the law's
+own work; ``--fixed w b`` adds the fixed ``b`` preshape beside ``w``),
 the targets of the speed issue against what was measured,
 the ``openup-ompl plan`` command from process start to plan written (median of
 ``--cli-runs`` fresh processes on each robot's demo scene, with the import of the package
@@ -119,6 +120,7 @@ def run_suites(
                         "solve_s": plan.solve_time_s if plan else time_limit,
                         "wall_s": wall,
                         "state_checks": plan.stats["state_checks"] if plan else None,
+                        "motion_checks": plan.stats["motion_checks"] if plan else None,
                         "ik_calls": plan.stats["ik_calls"] if plan else None,
                     }
                 )
@@ -144,6 +146,10 @@ def _cell(runs: list[dict[str, Any]]) -> dict[str, Any]:
         "state_checks": _common.median([r["state_checks"] for r in solved]),
         "ik_calls": _common.median([r["ik_calls"] for r in solved]),
     }
+
+
+def _geomean_of_logs(logs: list[float]) -> float:
+    return math.exp(sum(logs) / len(logs)) if logs else math.nan
 
 
 def summarize(
@@ -179,6 +185,11 @@ def summarize(
                 for r in runs
                 if (r["robot"], r["planner"]) == (robot, planner)
             }
+            solved = {
+                (r["problem"], r["seed"], r["hand"]): r
+                for r in runs
+                if (r["robot"], r["planner"]) == (robot, planner) and r["solved"]
+            }
             for hand in hands[1:]:
                 per_problem = [medians[(p, "law")] / medians[(p, hand)] for p in problems]
                 # The same problem and seed with either hand: ikbirrt then grows the same
@@ -188,11 +199,33 @@ def summarize(
                     for (problem, seed, kind), time in times.items()
                     if kind == "law"
                 ]
+                # The paired price split in two, over the pairs both hands solved: how many
+                # motions the search checked (the hand's shape: how hard the scene is with
+                # it), and how many states each motion cost (the law's own work: the
+                # fingers' motion widens every motion's displacement bound).
+                both = [
+                    (run, solved[(problem, seed, hand)])
+                    for (problem, seed, kind), run in solved.items()
+                    if kind == "law"
+                    and (problem, seed, hand) in solved
+                    and run["motion_checks"]
+                    and solved[(problem, seed, hand)]["motion_checks"]
+                ]
+                motions = [math.log(a["motion_checks"] / b["motion_checks"]) for a, b in both]
+                per_motion = [
+                    math.log(
+                        (a["state_checks"] / a["motion_checks"])
+                        / (b["state_checks"] / b["motion_checks"])
+                    )
+                    for a, b in both
+                ]
                 prices[(robot, planner, hand)] = {
                     "suite": law["median_ms"] / cells[(robot, planner, hand)]["median_ms"],
                     "per_problem_median": _common.median(per_problem),
                     "per_problem_max": max(per_problem),
                     "paired_geomean": math.exp(sum(paired) / len(paired)),
+                    "motions_geomean": _geomean_of_logs(motions),
+                    "checks_per_motion_geomean": _geomean_of_logs(per_motion),
                 }
     return {"cells": cells, "prices": prices}
 
@@ -355,6 +388,8 @@ def main() -> None:
             f"{price['per_problem_median']:.2f}",
             f"{price['per_problem_max']:.2f}",
             f"{price['paired_geomean']:.2f}",
+            f"{price['motions_geomean']:.2f}",
+            f"{price['checks_per_motion_geomean']:.2f}",
             f"≤ {PRICE_TARGET.get(planner, 1.2):g}" if preshape_of(hand) == "w" else "",
         ]
         for (robot, planner, hand), price in summary["prices"].items()
@@ -369,6 +404,8 @@ def main() -> None:
                 "per problem, median",
                 "per problem, max",
                 "per run, same seed (geometric mean)",
+                "of which motions",
+                "of which checks / motion",
                 "target",
             ],
             rows,
