@@ -77,16 +77,30 @@ def measure(scene: Path, views: int, width: int, height: int, seed: int) -> dict
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--scene", type=Path, default=ROOT / "scenes" / "lwa3_sdh_can.toml")
-    parser.add_argument("--views", type=int, default=50)
-    parser.add_argument("--width", type=int, default=160)
-    parser.add_argument("--height", type=int, default=120)
-    parser.add_argument("--seed", type=int, default=1)
-    parser.add_argument("--json", type=Path, default=None)
+    parser.add_argument(
+        "--scene",
+        type=Path,
+        default=ROOT / "scenes" / "lwa3_sdh_can.toml",
+        help="scene TOML (default: the demo's, scenes/lwa3_sdh_can.toml)",
+    )
+    parser.add_argument("--views", type=int, default=50, help="views (default 50)")
+    parser.add_argument("--width", type=int, default=160, help="image width [px] (160)")
+    parser.add_argument("--height", type=int, default=120, help="image height [px] (120)")
+    parser.add_argument("--seed", type=int, default=1, help="noise seed (1)")
+    parser.add_argument("--json", type=Path, default=None, help="also write the row as JSON")
     args = parser.parse_args()
     row = measure(args.scene, args.views, args.width, args.height, args.seed)
-    for key, value in row.items():
-        print(f"{key:>20}: {value:.2f}" if isinstance(value, float) else f"{key:>20}: {value}")
+    print(_common.machine_line(_common.machine_info()))
+    print()
+    print(
+        _common.markdown_table(
+            ["quantity", "value"],
+            [
+                [key, f"{value:.2f}" if isinstance(value, float) else value]
+                for key, value in row.items()
+            ],
+        )
+    )
     if args.json is not None:
         _common.write_json(str(args.json), {"machine": _common.machine_info(), "rows": [row]})
 

@@ -151,7 +151,9 @@ def fmt(value: float, spec: str) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--scene", default=None, help="scene TOML (default: the demo scene)")
+    parser.add_argument(
+        "--scene", default=None, help="scene TOML (default: scenes/panda_can.toml, the Panda's can)"
+    )
     parser.add_argument(
         "--planners",
         nargs="+",

@@ -518,7 +518,9 @@ def report(info: dict, states: dict, motions: list[dict]) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--scene", default=None, help="scene TOML (default: the demo scene)")
+    parser.add_argument(
+        "--scene", default=None, help="scene TOML (default: scenes/panda_can.toml, the Panda's can)"
+    )
     parser.add_argument("--states", type=int, default=5000, help="random states (default 5000)")
     parser.add_argument("--rounds", type=int, default=11, help="interleaved rounds, states")
     parser.add_argument("--motions", type=int, default=300, help="motions per length (300)")

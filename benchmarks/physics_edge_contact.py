@@ -14,12 +14,21 @@ fingers (README, Physics execution).
 Run (a second)::
 
     python benchmarks/physics_edge_contact.py
+    python benchmarks/physics_edge_contact.py --json edge.json
 """
 
 from __future__ import annotations
 
+import argparse
+import sys
+from pathlib import Path
+
 import mujoco
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import _common  # noqa: E402
 
 XML = """<mujoco>
 <option timestep="0.002" integrator="implicitfast" cone="elliptic" impratio="10"/>
@@ -57,15 +66,35 @@ def squeeze(offset: float) -> tuple[float, float]:
 
 
 def main() -> int:
-    print(
-        "| pads behind the axis [mm] | edge's true incline [deg] | MuJoCo normal's largest"
-        " angle from y [deg] | can x after closing [mm] |"
-    )
-    print("|--:|--:|--:|--:|")
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--json", default=None, help="also write the rows as JSON here")
+    args = parser.parse_args()
+    rows = []
     for offset in (0.0, 0.005, 0.01, 0.012, 0.015, 0.02):
         x, angle = squeeze(offset)
-        true = np.degrees(np.arcsin(max(0.0, offset - 0.011) / 0.03))
-        print(f"| {offset * 1e3:.0f} | {true:.0f} | {angle:.0f} | {x * 1e3:.1f} |")
+        true = float(np.degrees(np.arcsin(max(0.0, offset - 0.011) / 0.03)))
+        rows.append({"offset_m": offset, "incline_deg": true, "normal_deg": angle, "can_x_m": x})
+    print(
+        _common.markdown_table(
+            [
+                "pads behind the axis [mm]",
+                "edge's true incline [deg]",
+                "MuJoCo normal's largest angle from y [deg]",
+                "can x after closing [mm]",
+            ],
+            [
+                [
+                    f"{r['offset_m'] * 1e3:.0f}",
+                    f"{r['incline_deg']:.0f}",
+                    f"{r['normal_deg']:.0f}",
+                    f"{r['can_x_m'] * 1e3:.1f}",
+                ]
+                for r in rows
+            ],
+            left=0,
+        )
+    )
+    _common.write_json(args.json, {"machine": _common.machine_info(), "rows": rows})
     return 0
 
 

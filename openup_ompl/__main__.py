@@ -42,6 +42,17 @@ def _seed(text: str) -> int:
     return int(_parsed(text, int, lambda v: 0 <= v < 2**31, "an integer seed in [0, 2^31)"))
 
 
+def _planner(text: str) -> str:
+    """A planner name, lowered; an unknown or refused one is an argparse error that says
+    why (``planning.check_planner``: ``prm`` deadlocks on a Python goal region, ...)."""
+    from openup_ompl.planning import check_planner
+
+    try:
+        return check_planner(text)
+    except ConfigError as error:
+        raise argparse.ArgumentTypeError(f"expected {error.expected}, got {text!r}") from None
+
+
 class _Formatter(argparse.HelpFormatter):
     """Help that shows each option's default, unless its text already says it or there
     is none to show."""
@@ -108,7 +119,7 @@ def build_parser() -> argparse.ArgumentParser:
         sub.add_argument(
             "--planner",
             default="ikbirrt",
-            choices=PLANNERS,
+            type=_planner,
             metavar="NAME",
             help=f"one of {', '.join(PLANNERS)}",
         )
@@ -266,7 +277,7 @@ def build_parser() -> argparse.ArgumentParser:
     robust.add_argument("--seeds", type=int, default=10, help="plans per u (trials per cell)")
     robust.add_argument("--seed", type=_seed, default=1, help="seed of plan 0 (plan i: seed + i)")
     robust.add_argument(
-        "--planner", default="ikbirrt", choices=PLANNERS, metavar="NAME", help="planner name"
+        "--planner", default="ikbirrt", type=_planner, metavar="NAME", help="planner name"
     )
     robust.add_argument("--time", type=_positive_float, default=5.0, help="time limit per plan [s]")
     robust.add_argument(
@@ -350,15 +361,23 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="KEY=VALUE",
         help="camera options over the scene's [camera] (distance is swept by --distance)",
     )
-    loop.add_argument("--noise", type=float, nargs="+", default=[1.0, 2.0, 4.0])
+    loop.add_argument(
+        "--noise",
+        type=float,
+        nargs="+",
+        default=[1.0, 2.0, 4.0],
+        help="sensor noise scales (1: Kinect v1, 0: none)",
+    )
     loop.add_argument("--distance", type=float, nargs="+", default=[0.6, 1.0], help="[m]")
     loop.add_argument("--trials", type=int, default=10, help="views per noise and distance")
     loop.add_argument("--seed", type=_seed, default=1, help="seed of trial 0")
     loop.add_argument(
-        "--planner", default="ikbirrt", choices=PLANNERS, metavar="NAME", help="planner name"
+        "--planner", default="ikbirrt", type=_planner, metavar="NAME", help="planner name"
     )
     loop.add_argument("--time", type=_positive_float, default=5.0, help="time limit per plan [s]")
-    loop.add_argument("--out", type=Path, default=Path("openup-closed-loop"))
+    loop.add_argument(
+        "--out", type=Path, default=Path("openup-closed-loop"), help="output directory"
+    )
     loop.add_argument("--quiet", action="store_true", help="no progress on stderr")
     loop.set_defaults(handler=_closed_loop_command)
     return parser

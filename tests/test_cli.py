@@ -42,6 +42,7 @@ BAD_ARGS = {
     "missing scene": (["plan", "no_such_scene.toml"], "no_such_scene.toml"),
     "u above 1": (["plan", SCENE, "--u", "2"], "--u"),
     "unknown planner": (["plan", SCENE, "--planner", "nope"], "nope"),
+    "refused planner says why": (["robustness", "--planner", "prm"], "deadlocks"),
     "negative time": (["plan", SCENE, "--time", "-1"], "--time"),
     "no command": ([], "command"),
 }
