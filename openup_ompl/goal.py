@@ -27,6 +27,10 @@ from openup_ompl.validity import CoupledChecker
 GOAL_THRESHOLD = 1e-3
 #: Palm displacement [m] of one step of a pregrasp retreat (IKBiRRT's ``retreat_step``).
 PREGRASP_STEP = 0.025
+#: The shortest retreat step accepted [m] (here and for IKBiRRT's retreat): each step is
+#: an IK solve and a motion check, and a retreat of 0.1 m in micrometre steps would not
+#: end.
+MIN_RETREAT_STEP = 1e-3
 
 
 class GraspGoal:
@@ -169,7 +173,9 @@ class IKGoalRegion(ob.GoalSampleableRegion):
         max_joint_step: Arm motion [rad, Euclidean norm] one retreat step may not exceed.
 
     Raises:
-        ConfigError: A negative or non-finite ``pregrasp``, or a non-positive step.
+        ConfigError: A negative or non-finite ``pregrasp``, a ``pregrasp_step`` under
+            :data:`MIN_RETREAT_STEP`, a non-positive ``max_joint_step``, or
+            ``max_samples`` not an integer in [1, 2^31).
         UnreachableGrasp: No collision-free IK solution of the grasp pose was found.
     """
 
@@ -182,12 +188,18 @@ class IKGoalRegion(ob.GoalSampleableRegion):
         pregrasp_step: float = PREGRASP_STEP,
         max_joint_step: float = 0.3,
     ) -> None:
-        for name, value in (("pregrasp_step", pregrasp_step), ("max_joint_step", max_joint_step)):
-            if _toml.number(value, name) <= 0:
-                raise ConfigError(name, value, "a positive step")
+        _toml.number(pregrasp_step, "pregrasp_step", low=MIN_RETREAT_STEP)
+        if _toml.number(max_joint_step, "max_joint_step") <= 0:
+            raise ConfigError("max_joint_step", max_joint_step, "a positive step [rad]")
+        if not (
+            isinstance(max_samples, int)
+            and not isinstance(max_samples, bool)
+            and 1 <= max_samples < 2**31
+        ):
+            raise ConfigError("max_samples", max_samples, "an integer in [1, 2^31)")
         super().__init__(si)
         self.goal = goal
-        self.max_samples = int(max_samples)
+        self.max_samples = max_samples
         self.pregrasp = _toml.number(pregrasp, "pregrasp", low=0.0)
         self.pregrasp_step = float(pregrasp_step)
         self.max_joint_step = float(max_joint_step)

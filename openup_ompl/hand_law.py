@@ -54,12 +54,31 @@ def palm_distance(
     return dist
 
 
-def _check_unit(name: str, value: float, *, low_open: bool = False) -> float:
+#: The smallest ``mga`` accepted. Below it the hand would snap open within 1 % of the reach:
+#: the fingers' speed bound grows as ``1 / mga``, and with it the states a motion check
+#: places near the grasp (an LWA3 plan of ``scenes/lwa3_sdh_can.toml`` took 2.3 s at
+#: ``mga = 0.01``, 8 s at 0.001 and 48 s at 0.0001, overrunning a 3 s limit in one check).
+MGA_MIN = 0.01
+
+
+def _check_unit(name: str, value: float, *, low: float = 0.0) -> float:
+    """``value`` as a float if it is a number in ``[low, 1]``, else :class:`ConfigError`."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.number)):
+        raise ConfigError(name, value, f"a number in [{low:g}, 1]")
     value = float(value)
-    ok = math.isfinite(value) and (value > 0.0 if low_open else value >= 0.0) and value <= 1.0
-    if not ok:
-        raise ConfigError(name, value, "a number in (0, 1]" if low_open else "a number in [0, 1]")
+    if not (math.isfinite(value) and low <= value <= 1.0):
+        raise ConfigError(name, value, f"a number in [{low:g}, 1]")
     return value
+
+
+def _check_distance(d: float) -> float:
+    """``d`` as a float if it is a finite normalised distance ``>= 0``."""
+    if isinstance(d, (bool, np.bool_)) or not isinstance(d, (int, float, np.number)):
+        raise ConfigError("d", d, "a finite normalised distance >= 0")
+    d = float(d)
+    if not (math.isfinite(d) and d >= 0.0):
+        raise ConfigError("d", d, "a finite normalised distance >= 0")
+    return d
 
 
 def open_hand(
@@ -99,7 +118,7 @@ def open_hand(
         b: Base open configuration.
         w: Widest open configuration.
         u: Pose uncertainty in [0, 1].
-        mga: Normalised distance of maximum grip aperture, in (0, 1].
+        mga: Normalised distance of maximum grip aperture, in [:data:`MGA_MIN`, 1].
         continuous: Use the variant without the jump at ``mga``.
         open_arrival: Use the variant that arrives at the grasp opened by ``u``.
 
@@ -108,15 +127,22 @@ def open_hand(
         (:class:`HandLaw` clips).
 
     Raises:
-        ConfigError: ``u`` or ``mga`` out of range, ``d`` negative or not finite, or
-            ``c``, ``b``, ``w`` of different lengths.
+        ConfigError: ``u`` or ``mga`` out of range or not a number, ``d`` negative or
+            not finite, ``c``, ``b``, ``w`` not finite or of different lengths.
     """
     u = _check_unit("u", u)
-    mga = _check_unit("mga", mga, low_open=True)
-    d = float(d)
-    if not (math.isfinite(d) and d >= 0.0):
-        raise ConfigError("d", d, "a finite normalised distance >= 0")
-    c_, b_, w_ = (np.asarray(x, dtype=float) for x in (c, b, w))
+    mga = _check_unit("mga", mga, low=MGA_MIN)
+    d = _check_distance(d)
+    refs = []
+    for name, value in (("c", c), ("b", b), ("w", w)):
+        try:
+            ref = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            ref = np.full(1, np.nan)
+        if not np.all(np.isfinite(ref)):
+            raise ConfigError(name, value, "a finite list of numbers")
+        refs.append(ref)
+    c_, b_, w_ = refs
     if not (c_.shape == b_.shape == w_.shape and c_.ndim == 1):
         raise ConfigError("c, b, w", (c_.shape, b_.shape, w_.shape), "three vectors of one length")
     plateau = b_ + (w_ - b_) * u
@@ -142,7 +168,7 @@ class HandLaw:
         b: Base open configuration.
         w: Widest open configuration.
         u: Pose uncertainty in [0, 1].
-        mga: Normalised distance of maximum grip aperture, in (0, 1].
+        mga: Normalised distance of maximum grip aperture, in [MGA_MIN, 1] (0.01).
         lower: Hand joint lower limits.
         upper: Hand joint upper limits.
         continuous: Use the variant without the jump at ``mga``.
@@ -193,6 +219,12 @@ class HandLaw:
                 raise ConfigError(f"hand.{name}", getattr(self, name), "a finite list of numbers")
             arrays[name] = value
         n = arrays["lower"].size
+        if arrays["upper"].size != n or np.any(arrays["lower"] > arrays["upper"]):
+            raise ConfigError(
+                "hand.lower, hand.upper",
+                (arrays["lower"].tolist(), arrays["upper"].tolist()),
+                "limits of one length with lower <= upper",
+            )
         for name in ("c", "b", "w"):
             if arrays[name].size != n:
                 raise ConfigError(
@@ -215,7 +247,7 @@ class HandLaw:
             value.flags.writeable = False
             object.__setattr__(self, name, value)
         object.__setattr__(self, "u", _check_unit("hand.u", self.u))
-        object.__setattr__(self, "mga", _check_unit("hand.mga", self.mga, low_open=True))
+        object.__setattr__(self, "mga", _check_unit("hand.mga", self.mga, low=MGA_MIN))
         c, b, w = arrays["c"], arrays["b"], arrays["w"]
         lower, upper = arrays["lower"], arrays["upper"]
         plateau = b + (w - b) * self.u
@@ -249,7 +281,10 @@ class HandLaw:
         return int(self.c.size)
 
     def __call__(self, d: float) -> np.ndarray:
-        """Hand configuration at normalised distance ``d``, clipped to the joint limits."""
+        """Hand configuration at normalised distance ``d`` (finite, ``>= 0``), clipped to
+        the joint limits."""
+        if not d >= 0.0 or d == math.inf:  # NaN fails the first test
+            raise ConfigError("d", d, "a finite normalised distance >= 0")
         if self.fixed_clipped is not None:
             return self.fixed_clipped.copy()
         if d > self.mga:
@@ -257,7 +292,11 @@ class HandLaw:
         return np.clip(self.arrival + d * self.low_slope, self.lower, self.upper)
 
     def batch(self, d: np.ndarray) -> np.ndarray:
-        """Hand configurations for a vector of distances: shape ``(len(d), size)``."""
+        """Hand configurations for a vector of finite distances ``>= 0``: shape
+        ``(len(d), size)``."""
+        d = np.asarray(d, dtype=float)
+        if not np.all(np.isfinite(d) & (d >= 0.0)):
+            raise ConfigError("d", d.tolist(), "finite normalised distances >= 0")
         return self.columns(d).T
 
     def columns(self, d: np.ndarray) -> np.ndarray:

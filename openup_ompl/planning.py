@@ -95,16 +95,41 @@ def arm_state_space(robot: Robot) -> ob.RealVectorStateSpace:
     return space
 
 
+#: The longest time limit accepted [s] (about 11.6 days). OMPL 2.0.1's termination
+#: condition overflows its clock arithmetic for limits near 1e10 s: it then reports a
+#: timeout at once.
+TIME_LIMIT_MAX = 1e6
+#: The coarsest motion-check resolution accepted [m]: beyond it the checks, and the
+#: default padding of half of it, stop describing the scene.
+RESOLUTION_MAX = 0.1
+
+
+def _is_number(value: object) -> bool:
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
+        value, (bool, np.bool_)
+    )
+
+
 def check_time_limit(time_limit: float, where: str = "time_limit") -> float:
-    """``time_limit`` [s] if it is a positive finite number, else a :class:`ConfigError`."""
-    if not (
-        isinstance(time_limit, (int, float))
-        and not isinstance(time_limit, bool)
-        and math.isfinite(time_limit)
-        and time_limit > 0
-    ):
-        raise ConfigError(where, time_limit, "a positive number of seconds")
+    """``time_limit`` [s] if it is a number in ``(0, TIME_LIMIT_MAX]``, else a
+    :class:`ConfigError`."""
+    if not (_is_number(time_limit) and 0 < time_limit <= TIME_LIMIT_MAX):
+        raise ConfigError(where, time_limit, f"a positive number of seconds <= {TIME_LIMIT_MAX:g}")
     return float(time_limit)
+
+
+def check_seed(seed: int | None, where: str = "seed") -> int | None:
+    """``seed`` if it is ``None`` or an integer in ``[0, 2^63)``, else a
+    :class:`ConfigError`."""
+    if seed is None:
+        return None
+    if not (
+        isinstance(seed, (int, np.integer))
+        and not isinstance(seed, (bool, np.bool_))
+        and 0 <= seed < 2**63
+    ):
+        raise ConfigError(where, seed, "None or an integer in [0, 2^63)")
+    return int(seed)
 
 
 @dataclass(frozen=True)
@@ -169,20 +194,30 @@ class PlanningOptions:
             value = getattr(self, name)
             if value is not None and not isinstance(value, bool):
                 raise ConfigError(name, value, "true or false")
-        if not (isinstance(self.resolution, (int, float)) and 0 < self.resolution < math.inf):
-            raise ConfigError("resolution", self.resolution, "a positive length [m]")
+        if not (_is_number(self.resolution) and 0 < self.resolution <= RESOLUTION_MAX):
+            raise ConfigError(
+                "resolution", self.resolution, f"a positive length <= {RESOLUTION_MAX:g} [m]"
+            )
         if self.padding is not None and not (
-            isinstance(self.padding, (int, float)) and 0 <= self.padding < math.inf
+            _is_number(self.padding) and 0 <= self.padding < math.inf
         ):
             raise ConfigError("padding", self.padding, "a length >= 0 [m]")
         check_planner(self.planner)
         check_time_limit(self.time_limit)
         if not (isinstance(self.simplify_rounds, int) and self.simplify_rounds >= 0):
             raise ConfigError("simplify_rounds", self.simplify_rounds, "an integer >= 0")
-        if not (isinstance(self.max_goal_samples, int) and self.max_goal_samples >= 1):
-            raise ConfigError("max_goal_samples", self.max_goal_samples, "an integer >= 1")
-        if not (isinstance(self.planner_range, (int, float)) and 0 < self.planner_range < math.inf):
+        if not (
+            isinstance(self.max_goal_samples, int)
+            and not isinstance(self.max_goal_samples, bool)
+            and 1 <= self.max_goal_samples < 2**31
+        ):
+            raise ConfigError("max_goal_samples", self.max_goal_samples, "an integer in [1, 2^31)")
+        if not (_is_number(self.planner_range) and 0 < self.planner_range < math.inf):
             raise ConfigError("planner_range", self.planner_range, "a positive step [rad]")
+        for name, kind in (("ik_options", IKOptions), ("ikbirrt_options", IKBiRRTOptions)):
+            value = getattr(self, name)
+            if value is not None and not isinstance(value, kind):
+                raise ConfigError(name, value, f"None or an {kind.__name__}")
         _toml.number(self.pregrasp, "pregrasp", low=0.0)
 
 
@@ -359,11 +394,12 @@ class GraspPlanningSetup:
                 changes nothing). ``simplify`` and this default to the options'.
 
         Raises:
-            ConfigError: Bad time limit or planner name.
+            ConfigError: Bad time limit, seed or planner name.
             PlanningFailed: No exact solution in time (the message gives OMPL's status).
         """
         options = self.options
         time_limit = options.time_limit if time_limit is None else check_time_limit(time_limit)
+        seed = check_seed(seed)
         planner = options.planner if planner is None else planner
         simplify = options.simplify if simplify is None else simplify
         rounds = options.simplify_rounds if simplify_rounds is None else simplify_rounds

@@ -3,6 +3,7 @@ obstacles. Every table rejects keys it does not know, naming the nearest valid o
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -170,6 +171,8 @@ def load_scene(path: str | Path, robot: Robot | None = None) -> Problem:
         ConfigError: A missing key or bad value, named with its file and key.
         RobotNotFound, JointNotFound, FrameNotFound: From loading the robot.
     """
+    if not isinstance(path, (str, os.PathLike)):
+        raise ConfigError("scene file", path, "a path to a scene TOML")
     path = Path(path).expanduser().resolve()
     raw = _toml.read_toml(path, "scene file")
     where = path.name

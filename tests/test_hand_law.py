@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -131,9 +132,15 @@ def test_open_hand_accepts_mga_one():
         ({"u": 1.5}, "u", "1.5"),
         ({"u": math.nan}, "u", "nan"),
         ({"mga": 0.0}, "mga", "0.0"),
+        ({"mga": 1e-9}, "mga", "1e-09"),  # below MGA_MIN: checks would not end
         ({"mga": 1.5}, "mga", "1.5"),
+        ({"mga": "x"}, "mga", "'x'"),
+        ({"u": "0.3"}, "u", "'0.3'"),
+        ({"u": True}, "u", "True"),
         ({"d": -0.1}, "d", "-0.1"),
         ({"d": math.nan}, "d", "nan"),
+        ({"d": "abc"}, "d", "'abc'"),
+        ({"c": [math.nan, 0.0]}, "c", "nan"),
         ({"c": [0.0, 1.0, 2.0]}, "c, b, w", "(3,)"),
         ({"w": [1.0]}, "c, b, w", "(1,)"),
     ],
@@ -209,6 +216,22 @@ def test_hand_law_rejects_u_out_of_range(panda):
     """HandLaw validates u like open_hand does."""
     with pytest.raises(ou.ConfigError, match="1.5"):
         panda.hand_law(u=1.5)
+
+
+@pytest.mark.parametrize("d", [math.nan, -5.0, math.inf])
+def test_hand_law_rejects_a_bad_distance(panda, d):
+    """A NaN, negative or infinite d is refused, not clipped into a hand."""
+    law = panda.hand_law()
+    with pytest.raises(ou.ConfigError, match="^d: "):
+        law(d)
+    with pytest.raises(ou.ConfigError, match="^d: "):
+        law.batch(np.array([0.1, d]))
+
+
+def test_hand_law_rejects_crossed_limits(panda):
+    law = panda.hand_law()
+    with pytest.raises(ou.ConfigError, match="lower <= upper"):
+        dataclasses.replace(law, lower=law.upper + 0.01, upper=law.lower)
 
 
 GRASP = pin.SE3(pin.rpy.rpyToMatrix(math.pi, 0.0, 0.0), np.array([0.6, 0.0, 0.2]))

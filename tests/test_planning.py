@@ -271,6 +271,8 @@ def test_bad_retreat_options_are_named() -> None:
         ("retreat", -0.1),
         ("retreat", float("nan")),
         ("retreat_step", 0.0),
+        ("retreat_step", 1e-9),  # a retreat in nanometre steps would not end
+        ("seed", -1),
         ("aim_new_roots", 1),
     ):
         with pytest.raises(oo.ConfigError, match=field):
@@ -289,7 +291,17 @@ def test_planning_options_equal_the_keyword_form(default_problem: oo.Problem) ->
 
 @pytest.mark.parametrize(
     ("changes", "named"),
-    [({"planner": "prm"}, "deadlocks"), ({"time_limit": 0}, "time_limit"), ({"u": 2}, "u")],
+    [
+        ({"planner": "prm"}, "deadlocks"),
+        ({"time_limit": 0}, "time_limit"),
+        ({"time_limit": 1e10}, "time_limit"),  # OMPL's clock overflows: an instant timeout
+        ({"u": 2}, "u"),
+        ({"resolution": 1e9}, "resolution"),
+        ({"resolution": True}, "resolution"),
+        ({"max_goal_samples": 10**12}, "max_goal_samples"),  # OMPL's unsigned int
+        ({"ik_options": "x"}, "ik_options"),
+        ({"ikbirrt_options": "x"}, "ikbirrt_options"),
+    ],
 )
 def test_bad_planning_options_are_named(changes: dict, named: str) -> None:
     """PlanningOptions validates each value once, naming it."""
@@ -445,6 +457,28 @@ def test_ompl_planners_reach_the_grasp_through_the_pregrasp(tmp_path: Path) -> N
                 along, off_axis, angle = _palm_offset(setup, arm)
                 assert -0.101 < along <= 1e-3 and off_axis < 0.01 and angle < 0.05
     assert checks[0.1] < checks[0.0] / 2
+
+
+@pytest.mark.parametrize("seed", [-1, 1.5, "x", True])
+def test_bad_seed_is_named(default_setup: oo.GraspPlanningSetup, seed: object) -> None:
+    with pytest.raises(oo.ConfigError, match="seed"):
+        default_setup.solve(time_limit=1.0, seed=seed)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    ("changes", "named"),
+    [
+        ({"pregrasp": 0.1, "pregrasp_step": 1e-9}, "pregrasp_step"),
+        ({"max_samples": 0}, "max_samples"),
+        ({"max_samples": float("nan")}, "max_samples"),
+        ({"max_samples": "x"}, "max_samples"),
+    ],
+)
+def test_bad_goal_region_arguments_are_named(
+    default_setup: oo.GraspPlanningSetup, changes: dict, named: str
+) -> None:
+    with pytest.raises(oo.ConfigError, match=named):
+        oo.IKGoalRegion(default_setup.space_information, default_setup.goal, **changes)
 
 
 @pytest.mark.parametrize("value", [-0.1, float("nan"), float("inf"), True])

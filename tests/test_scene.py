@@ -147,6 +147,7 @@ BAD_EDITS = {
     "u above 1": ("u = 0.3", "u = 1.5", "hand.u"),
     "u below 0": ("u = 0.3", "u = -0.1", "hand.u"),
     "mga zero": ("mga = 0.25", "mga = 0.0", "hand.mga"),
+    "mga too small": ("mga = 0.25", "mga = 1e-9", "hand.mga"),  # would not end: MGA_MIN
     "unknown hand key": ("u = 0.3", "u = 0.3\nspread = 1.0", "hand.spread"),
     "open_arrival not a bool": ("u = 0.3", 'u = 0.3\nopen_arrival = "yes"', "hand.open_arrival"),
     "c of wrong length": ("c = [0.035, 0.035]", "c = [0.035]", "hand.c"),

@@ -45,7 +45,7 @@ from ompl import base as ob
 from ompl import geometric as og
 
 from openup_ompl.exceptions import ConfigError
-from openup_ompl.goal import GraspGoal, IKGoalRegion
+from openup_ompl.goal import MIN_RETREAT_STEP, GraspGoal, IKGoalRegion
 
 
 @dataclass(frozen=True)
@@ -60,7 +60,8 @@ class IKBiRRTOptions:
         goal_restarts: IK restarts per goal-sampling iteration.
         retreat: Length [m] of the straight palm retreat grown from each new goal root
             (0: none).
-        retreat_step: Palm displacement [m] of one retreat step (one goal-tree vertex).
+        retreat_step: Palm displacement [m] of one retreat step (one goal-tree vertex),
+            at least :data:`~openup_ompl.goal.MIN_RETREAT_STEP`.
         seed: Seed of the planner's random generator (``None``: fresh entropy).
         lazy: Check the trees' edges only when they lie on a path between the trees (see
             the module docstring); ``False`` checks every step as it is grown.
@@ -88,10 +89,18 @@ class IKBiRRTOptions:
             raise ConfigError("IKBiRRTOptions.goal_restarts", self.goal_restarts, "an integer >= 1")
         if not (math.isfinite(self.retreat) and self.retreat >= 0):
             raise ConfigError("IKBiRRTOptions.retreat", self.retreat, "a distance >= 0 [m]")
-        if not (math.isfinite(self.retreat_step) and self.retreat_step > 0):
+        if not (math.isfinite(self.retreat_step) and self.retreat_step >= MIN_RETREAT_STEP):
             raise ConfigError(
-                "IKBiRRTOptions.retreat_step", self.retreat_step, "a positive distance [m]"
+                "IKBiRRTOptions.retreat_step",
+                self.retreat_step,
+                f"a distance >= {MIN_RETREAT_STEP:g} [m]",
             )
+        if self.seed is not None and not (
+            isinstance(self.seed, (int, np.integer))
+            and not isinstance(self.seed, (bool, np.bool_))
+            and self.seed >= 0
+        ):
+            raise ConfigError("IKBiRRTOptions.seed", self.seed, "None or an integer >= 0")
         for name in ("lazy", "aim_new_roots"):
             if not isinstance(getattr(self, name), bool):
                 raise ConfigError(f"IKBiRRTOptions.{name}", getattr(self, name), "true or false")
