@@ -42,6 +42,31 @@ def _seed(text: str) -> int:
     return int(_parsed(text, int, lambda v: 0 <= v < 2**31, "an integer seed in [0, 2^31)"))
 
 
+def _count(text: str) -> int:
+    """A positive integer (runs, seeds, trials, workers); each command's options bound it
+    further."""
+    return int(_parsed(text, int, lambda v: v >= 1, "a positive integer"))
+
+
+def _scheduler(text: str) -> str:
+    """A Dask scheduler address, ``[scheme://]host[:port]``, checked with Dask's own parser
+    (when Dask is installed: without it the run says the extra is missing)."""
+    try:
+        from distributed.comm.addressing import parse_address, parse_host_port
+    except ImportError:
+        return text
+    expected = f"a Dask scheduler address such as tcp://host:8786, got {text!r}"
+    try:
+        scheme, location = parse_address(text)
+        if scheme in ("tcp", "tls"):
+            host, port = parse_host_port(location, 8786)
+            if not host or not 0 < port < 2**16:
+                raise ValueError(location)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected {expected}") from None
+    return text
+
+
 def _planner(text: str) -> str:
     """A planner name, lowered; an unknown or refused one is an argparse error that says
     why (``planning.check_planner``: ``prm`` deadlocks on a Python goal region, ...)."""
@@ -186,7 +211,13 @@ def build_parser() -> argparse.ArgumentParser:
     law.add_argument(
         "--open-arrival", action="store_true", help="the law that reaches the grasp opened by u"
     )
-    law.add_argument("--out", type=Path, default=None, help="PNG (default: <robot>_hand_law.png)")
+    law.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="image file: PNG, PDF, SVG, ... by its suffix, PNG without one"
+        " (default: <robot>_hand_law.png)",
+    )
     law.set_defaults(handler=_law_command)
 
     robots = commands.add_parser(
@@ -206,9 +237,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="scene files or directories (default: every robot's suite, benchmarks/problems/*)",
     )
     bench.add_argument(
-        "--planners", nargs="+", default=["ikbirrt", "rrtconnect"], help="planner names"
+        "--planners",
+        nargs="+",
+        default=["ikbirrt", "rrtconnect"],
+        metavar="NAME",
+        help=f"one or more of {', '.join(PLANNERS)}",
     )
-    bench.add_argument("--runs", type=int, default=10, help="runs per problem, planner and hand")
+    bench.add_argument("--runs", type=_count, default=10, help="runs per problem, planner and hand")
     bench.add_argument("--time", type=_positive_float, default=5.0, help="time limit per run [s]")
     bench.add_argument(
         "--fixed-hand", action="store_true", help="also run the fixed preshape (hand frozen at w)"
@@ -216,8 +251,15 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument(
         "--out", type=Path, default=Path("openup-benchmark"), help="output directory"
     )
-    bench.add_argument("--workers", type=int, default=None, help="local task processes at a time")
-    bench.add_argument("--scheduler", default=None, help="Dask scheduler address (tcp://host:port)")
+    bench.add_argument(
+        "--workers", type=_count, default=None, help="local task processes at a time"
+    )
+    bench.add_argument(
+        "--scheduler",
+        type=_scheduler,
+        default=None,
+        help="Dask scheduler address (tcp://host:port)",
+    )
     bench.add_argument("--seed", type=_seed, default=1, help="seed of run 0 (run i: seed + i)")
     bench.add_argument("--quiet", action="store_true", help="no progress on stderr")
     bench.set_defaults(handler=_benchmark_command)
@@ -274,7 +316,7 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="object rotations about its own z axis [rad] (default: 0)",
     )
-    robust.add_argument("--seeds", type=int, default=10, help="plans per u (trials per cell)")
+    robust.add_argument("--seeds", type=_count, default=10, help="plans per u (trials per cell)")
     robust.add_argument("--seed", type=_seed, default=1, help="seed of plan 0 (plan i: seed + i)")
     robust.add_argument(
         "--planner", default="ikbirrt", type=_planner, metavar="NAME", help="planner name"
@@ -305,9 +347,14 @@ def build_parser() -> argparse.ArgumentParser:
     robust.add_argument(
         "--out", type=Path, default=Path("openup-robustness"), help="output directory"
     )
-    robust.add_argument("--workers", type=int, default=None, help="local task processes at a time")
     robust.add_argument(
-        "--scheduler", default=None, help="Dask scheduler address (tcp://host:port)"
+        "--workers", type=_count, default=None, help="local task processes at a time"
+    )
+    robust.add_argument(
+        "--scheduler",
+        type=_scheduler,
+        default=None,
+        help="Dask scheduler address (tcp://host:port)",
     )
     robust.add_argument("--quiet", action="store_true", help="no progress on stderr")
     robust.set_defaults(handler=_robustness_command)
@@ -369,7 +416,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="sensor noise scales (1: Kinect v1, 0: none)",
     )
     loop.add_argument("--distance", type=float, nargs="+", default=[0.6, 1.0], help="[m]")
-    loop.add_argument("--trials", type=int, default=10, help="views per noise and distance")
+    loop.add_argument("--trials", type=_count, default=10, help="views per noise and distance")
     loop.add_argument("--seed", type=_seed, default=1, help="seed of trial 0")
     loop.add_argument(
         "--planner", default="ikbirrt", type=_planner, metavar="NAME", help="planner name"
@@ -544,8 +591,10 @@ def _law_command(args: argparse.Namespace) -> int:
     from openup_ompl.robot import load_robot
     from openup_ompl.scene import load_scene
     from openup_ompl.viz._scene import prismatic_joints
-    from openup_ompl.viz.law import plot_law
+    from openup_ompl.viz.law import figure_path, plot_law
 
+    _file_out(args.out)
+    out = None if args.out is None else figure_path(args.out, "--out")
     if args.scene is not None:
         problem = load_scene(args.scene)
         robot, law = problem.robot, problem.hand_law
@@ -558,7 +607,7 @@ def _law_command(args: argparse.Namespace) -> int:
     joints = list(robot.hand_joints)
     figure = plot_law(
         law,
-        args.out or Path(f"{robot.name}_hand_law.png"),
+        out or Path(f"{robot.name}_hand_law.png"),
         us=args.u,
         joint_names=joints,
         prismatic=prismatic_joints(robot.model, joints).tolist(),
@@ -599,8 +648,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             args.seed = secrets.randbelow(2**31)
         # OMPL's planners draw from one process-wide generator that can only be seeded
         # before any OMPL object exists: do it first, so that the same seed gives the same
-        # plan.
-        ompl_util.RNG.setSeed(args.seed)
+        # plan. OMPL refuses 0 and uses 1 instead, with a two-line warning on stderr: seed
+        # 0 is given OMPL's 1 here, the same draws without the warning.
+        ompl_util.RNG.setSeed(max(args.seed, 1))
     ompl_util.setLogLevel(ompl_util.LOG_ERROR)
     try:
         return int(args.handler(args))

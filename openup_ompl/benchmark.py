@@ -243,12 +243,20 @@ def build_database(records: Sequence[dict[str, Any]], out: Path) -> Path:
     and add :data:`EXTRA_COLUMNS` to its ``runs`` table.
 
     Raises:
+        InvalidProblem: No run has a log: no problem could be set up (each named with
+            why).
         OpenUpError: ``ompl_benchmark_statistics`` failed.
     """
     out = Path(out)
+    logged = [r for r in records if r.get("log")]
+    if not logged:
+        failed = {r["problem"]: r.get("error", "no OMPL log") for r in records}
+        raise InvalidProblem(
+            "no problem could be set up, so there is no OMPL log to benchmark: "
+            + "; ".join(f"{problem}: {why}" for problem, why in failed.items())
+        )
     logs_dir = out / "logs"
     logs_dir.mkdir(parents=True, exist_ok=True)
-    logged = [r for r in records if r.get("log")]
     paths = []
     for record in logged:
         path = logs_dir / f"{record['key']}.log"
@@ -280,7 +288,8 @@ def build_database(records: Sequence[dict[str, Any]], out: Path) -> Path:
 
 def summarize(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     """Per (problem, planner, hand): runs, success, median and 95th-percentile solve time
-    (a failed run counts as its time), mean path length and counters of the solved runs."""
+    (a failed run counts as its time), mean path length and counters of the solved runs
+    (``None`` when no run was solved)."""
     groups: dict[tuple[str, str, str], list[dict[str, Any]]] = {}
     for record in records:
         key = (record["problem"], record["planner"], record["hand"])
@@ -290,9 +299,9 @@ def summarize(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
         times = np.array([float(r["time"]) for r in group])
         solved = [r for r in group if r["solved"]]
 
-        def mean(field: str, rows: list[dict[str, Any]] = solved) -> float:
+        def mean(field: str, rows: list[dict[str, Any]] = solved) -> float | None:
             values = [float(r[field]) for r in rows if r.get(field) is not None]
-            return float(np.mean(values)) if values else math.nan
+            return float(np.mean(values)) if values else None
 
         rows.append(
             {
@@ -310,6 +319,18 @@ def summarize(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
             }
         )
     return rows
+
+
+def _json_numbers(value: Any) -> Any:
+    """``value`` with every non-finite float as ``None``: JSON has no NaN (a run's time
+    is NaN when OMPL recorded none)."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {key: _json_numbers(item) for key, item in value.items()}
+    if isinstance(value, list):
+        return [_json_numbers(item) for item in value]
+    return value
 
 
 def plot_results(rows: Sequence[dict[str, Any]], out: Path) -> list[Path]:
@@ -362,10 +383,11 @@ def markdown_table(rows: Sequence[dict[str, Any]]) -> str:
         "|:--|:--|:--|--:|--:|--:|--:|--:|",
     ]
     for r in rows:
+        length = "-" if r["length"] is None else f"{r['length']:.2f}"
         lines.append(
             f"| {r['problem']} | {r['planner']} | {r['hand']} | {r['runs']} | "
             f"{100 * r['success']:.0f} % | {1e3 * r['median_time']:.0f} | "
-            f"{1e3 * r['p95_time']:.0f} | {r['length']:.2f} |"
+            f"{1e3 * r['p95_time']:.0f} | {length} |"
         )
     return "\n".join(lines)
 
@@ -419,7 +441,7 @@ def run_benchmark(
     db = build_database(records, out)
     rows = summarize(records)
     summary = out / "summary.json"
-    summary.write_text(json.dumps({"rows": rows}, indent=1, default=str) + "\n")
+    summary.write_text(json.dumps({"rows": _json_numbers(rows)}, indent=1, default=str) + "\n")
     drawn: list[Path] = []
     if plots:
         try:

@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import json
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -12,9 +11,10 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from openup_ompl import _toml
 from openup_ompl._io import read_json, write_atomic
 from openup_ompl._model import frame_id
-from openup_ompl.exceptions import ConfigError, JointNotFound
+from openup_ompl.exceptions import ConfigError, FrameNotFound
 from openup_ompl.hand_law import HandLaw
 from openup_ompl.scene import Problem, Shape
 
@@ -121,53 +121,85 @@ def _plan_json(data: dict[str, Any]) -> str:
 
 
 def read_plan(path: str | Path) -> dict[str, Any]:
-    """Read a plan file and check its format and path shape."""
-    path = Path(path)
-    data = read_json(path, PLAN_FORMAT, "plan file")
-    rows = data.get("path")
-    names = data.get("robot", {}).get("joint_names", [])
-    if not (
-        isinstance(rows, list)
-        and rows
-        and all(isinstance(r, list) and len(r) == len(names) for r in rows)
-    ):
-        raise ConfigError(f"{path.name}: path", "malformed", f"rows of {len(names)} joint values")
-    if not all(math.isfinite(x) for row in rows for x in row):
-        raise ConfigError(f"{path.name}: path", "non-finite values", "finite joint values")
-    return data
+    """Read a plan file and check it whole, as :meth:`PlanFile.read` does (the one check
+    of ``show`` and ``execute``); returns its contents.
+
+    Raises:
+        ConfigError: What :meth:`PlanFile.read` raises.
+    """
+    return PlanFile.read(path).contents
 
 
-def _key(table: Any, key: str, where: str = "") -> Any:
-    """``table[key]``, or a ConfigError naming the missing ``where.key``."""
-    name = f"{where}.{key}" if where else key
-    if not isinstance(table, dict) or key not in table:
-        raise ConfigError(name, None, f"a plan file with {name}")
-    return table[key]
+#: Slack [rad or m] a plan file's path may have beyond a joint limit (the planner's rows
+#: lie within the limits; this only absorbs rounding).
+LIMIT_TOLERANCE = 1e-6
 
 
-def _numbers(value: Any, where: str, shape: tuple[int, ...]) -> np.ndarray:
-    """``value`` as a finite float array of ``shape`` (-1: any length), or a ConfigError."""
-    try:
-        array = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        array = np.zeros(0)
-    fits = array.ndim == len(shape) and all(
-        n in (-1, m) for n, m in zip(shape, array.shape, strict=True)
-    )
-    if not (fits and array.size and np.all(np.isfinite(array))):
-        expected = "[x, y, z, qx, qy, qz, qw]" if shape == (7,) else f"rows of {shape[-1]} values"
-        shown = value if isinstance(value, list) and len(value) <= 7 else "malformed"
-        raise ConfigError(where, shown, expected)
+def number_rows(value: Any, where: str, width: int) -> np.ndarray:
+    """``value`` (a non-empty list of rows of ``width`` finite numbers) as an
+    ``(N, width)`` array.
+
+    Raises:
+        ConfigError: Not such a list, naming the first bad row or value
+            (``where[i]`` or ``where[i][j]``).
+    """
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    if not (isinstance(value, list) and value):
+        raise ConfigError(where, value, f"a non-empty list of rows of {width} numbers")
+    for i, row in enumerate(value):
+        if not (isinstance(row, list) and len(row) == width):
+            raise ConfigError(f"{where}[{i}]", row, f"a row of {width} numbers")
+        for j, x in enumerate(row):
+            if type(x) not in (int, float):
+                raise ConfigError(f"{where}[{i}][{j}]", x, "a number")
+    array = np.array(value, dtype=float)
+    bad = np.argwhere(~np.isfinite(array))
+    if bad.size:
+        i, j = bad[0]
+        raise ConfigError(f"{where}[{i}][{j}]", float(array[i, j]), "a finite number")
     return array
 
 
-def _urdf_model(urdf: str) -> pin.Model:
+def _path(value: Any, where: str, model: pin.Model) -> np.ndarray:
+    """A plan's ``path``: rows of ``model.nq`` finite joint values within the joint limits
+    (:data:`LIMIT_TOLERANCE`), or a ConfigError naming the row, the joint and its limits."""
+    path = number_rows(value, where, model.nq)
+    columns = [model.names[i] for i in range(1, model.njoints) for _ in range(model.joints[i].nq)]
+    low, high = model.lowerPositionLimit, model.upperPositionLimit
+    outside = np.argwhere((path < low - LIMIT_TOLERANCE) | (path > high + LIMIT_TOLERANCE))
+    if outside.size:
+        i, j = outside[0]
+        raise ConfigError(
+            f"{where}[{i}][{j}]",
+            float(path[i, j]),
+            f"{columns[j]} within its limits [{low[j]:.6g}, {high[j]:.6g}]",
+        )
+    return path
+
+
+def _table(data: dict[str, Any], key: str, where: str, expected: str) -> dict[str, Any]:
+    """``data[key]``, a table, or a ConfigError naming ``where + key``."""
+    value = _key(data, key, where)
+    if not isinstance(value, dict):
+        raise ConfigError(f"{where}{key}", value, expected)
+    return value
+
+
+def _key(table: dict[str, Any], key: str, where: str) -> Any:
+    """``table[key]``, or a ConfigError naming the missing ``where + key``."""
+    if key not in table:
+        raise ConfigError(f"{where}{key}", None, "a value (the key is missing)")
+    return table[key]
+
+
+def _urdf_model(urdf: str, where: str = "robot.urdf") -> pin.Model:
     if not Path(urdf).is_file():
-        raise ConfigError("robot.urdf", urdf, "an existing URDF file")
+        raise ConfigError(where, urdf, "an existing URDF file")
     try:
         return pin.buildModelFromUrdf(urdf)
     except (RuntimeError, ValueError) as error:
-        raise ConfigError("robot.urdf", urdf, f"a loadable URDF ({error})") from None
+        raise ConfigError(where, urdf, f"a loadable URDF ({error})") from None
 
 
 @dataclass(frozen=True, eq=False)
@@ -194,6 +226,8 @@ class PlanFile:
         path: ``(N, nq)`` full configurations.
         obstacles: The scene's obstacles.
         object: The object to grasp, or ``None``.
+        contents: The plan file's contents as read (JSON types): what a physics rollout
+            builds its world from and an execution record keeps.
     """
 
     name: str
@@ -211,71 +245,117 @@ class PlanFile:
     path: np.ndarray
     obstacles: tuple[Shape, ...]
     object: Shape | None
+    contents: dict[str, Any] = field(repr=False)
 
     @classmethod
     def read(cls, path: str | Path) -> PlanFile:
-        """Read and check a plan file (:func:`read_plan`) and load its robot's model.
+        """Read a plan file, check it (:meth:`from_dict`) and load its robot's model.
 
         Raises:
-            ConfigError: The file is not a readable plan, a key is missing or holds a bad
-                value, or its URDF cannot be loaded.
-            JointNotFound, FrameNotFound: The plan names a joint or frame its URDF lacks.
+            ConfigError: The file is not a readable ``openup-plan/1`` file, or what
+                :meth:`from_dict` raises, located at ``<file name>: <key>``.
         """
         path = Path(path)
-        return cls.from_dict(read_plan(path), path.stem)
+        data = read_json(path, PLAN_FORMAT, "plan file")
+        return cls.from_dict(data, path.stem, where=f"{path.name}: ")
 
     @classmethod
-    def from_dict(cls, data: dict[str, Any], name: str = "plan") -> PlanFile:
+    def from_dict(cls, data: dict[str, Any], name: str = "plan", where: str = "") -> PlanFile:
         """Check a plan file's contents (as :meth:`Plan.to_dict` gives them) and load
-        its robot's model (see :meth:`read`)."""
-        robot = _key(data, "robot")
-        urdf = str(_key(robot, "urdf", "robot"))
-        model = _urdf_model(urdf)
+        its robot's model: the one check of every reader (``show``, ``execute``, the
+        physics rollout, an execution file's ``source``).
+
+        Args:
+            data: The contents.
+            name: A short name for titles.
+            where: Prefix of error locations (e.g. ``"plan.json: "``).
+
+        Raises:
+            ConfigError: A key is missing or holds a bad value (a robot table naming
+                joints or a frame its URDF lacks, an unloadable URDF, a bad law, shape or
+                grasp pose, a path row of the wrong width, non-finite or beyond a joint
+                limit by more than :data:`LIMIT_TOLERANCE`), located at ``where + key``.
+        """
+        if not isinstance(data, dict):
+            raise ConfigError(where.rstrip(": .") or "plan", data, "a plan (a JSON object)")
+        robot = _table(data, "robot", where, "a table with urdf, joint_names, palm_frame, ...")
+        at = f"{where}robot."
+        urdf = _toml.string(_key(robot, "urdf", at), f"{at}urdf")
+        model = _urdf_model(urdf, f"{at}urdf")
         names = [model.names[i] for i in range(1, model.njoints) if model.joints[i].nq > 0]
-        if list(_key(robot, "joint_names", "robot")) != names:
-            raise ConfigError("robot.joint_names", robot["joint_names"], f"{names} (the URDF's)")
-        hand_joints = tuple(_key(robot, "hand_joints", "robot"))
-        for joint in hand_joints:
-            if not model.existJointName(joint):
-                raise JointNotFound(joint, names)
-        hand_idx = np.array([model.joints[model.getJointId(n)].idx_q for n in hand_joints])
-        palm_frame_id = frame_id(model, str(_key(robot, "palm_frame", "robot")))
-        table = _key(data, "hand_law")
-        if not isinstance(table, dict):
-            raise ConfigError("hand_law", table, "a table with c, b, w, u, mga")
+        if _key(robot, "joint_names", at) != names:
+            raise ConfigError(f"{at}joint_names", robot["joint_names"], f"{names} (the URDF's)")
+        groups: dict[str, list[str]] = {}
+        for key in ("arm_joints", "hand_joints"):
+            groups[key] = _toml.string_list(_key(robot, key, at), f"{at}{key}")
+            for joint in groups[key]:
+                if joint not in names:
+                    raise ConfigError(f"{at}{key}", joint, f"one of robot.joint_names {names}")
+        shared = sorted(set(groups["arm_joints"]) & set(groups["hand_joints"]))
+        if shared:
+            raise ConfigError(f"{at}hand_joints", shared[0], "a joint not in robot.arm_joints")
+        hand_joints = tuple(groups["hand_joints"])
+        package_dirs = robot.get("package_dirs") or []
+        if not (isinstance(package_dirs, list) and all(isinstance(d, str) for d in package_dirs)):
+            raise ConfigError(f"{at}package_dirs", package_dirs, "a list of directories")
+        palm = _toml.string(_key(robot, "palm_frame", at), f"{at}palm_frame")
+        try:
+            palm_frame_id = frame_id(model, palm)
+        except FrameNotFound:
+            raise ConfigError(f"{at}palm_frame", palm, f"a frame of {urdf}") from None
+        hand_idx = np.array(
+            [model.joints[model.getJointId(n)].idx_q for n in hand_joints], dtype=np.intp
+        )
+        table = _table(data, "hand_law", where, "a table with c, b, w, u, mga")
         law = HandLaw.from_table(
             table,
             model.lowerPositionLimit[hand_idx],
             model.upperPositionLimit[hand_idx],
-            "hand_law",
+            f"{where}hand_law",
             ignore=("start_palm_distance",),
         )
-        scene = _key(data, "scene")
-        if not isinstance(scene, dict):
-            raise ConfigError("scene", scene, "a table with the object and obstacles")
+        if table.get("start_palm_distance") is not None:
+            _toml.number(
+                table["start_palm_distance"], f"{where}hand_law.start_palm_distance", low=0.0
+            )
+        scene = _table(data, "scene", where, "a table with the object and obstacles")
+        raw_obstacles = scene.get("obstacles") or []
+        if not isinstance(raw_obstacles, list):
+            raise ConfigError(f"{where}scene.obstacles", raw_obstacles, "a list of shape tables")
         obstacles = tuple(
-            Shape.from_table(table, f"scene.obstacles[{i}]")
-            for i, table in enumerate(scene.get("obstacles") or [])
+            Shape.from_table(table, f"{where}scene.obstacles[{i}]")
+            for i, table in enumerate(raw_obstacles)
         )
         raw_object = scene.get("object")
+        for key in ("planner", "status"):
+            if key in data:
+                _toml.string(data[key], f"{where}{key}")
+        seed = data.get("seed")
+        if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer))):
+            raise ConfigError(f"{where}seed", seed, "an integer or null")
+        if "solve_time_s" in data:
+            _toml.number(data["solve_time_s"], f"{where}solve_time_s", low=0.0)
+        if "start" in data:
+            _toml.vector(data["start"], f"{where}start", len(groups["arm_joints"]))
         return cls(
             name=name,
-            planner=str(data.get("planner", "plan")),
-            seed=data.get("seed"),
-            status=str(data.get("status", "")),
+            planner=data.get("planner", "plan"),
+            seed=None if seed is None else int(seed),
+            status=data.get("status", ""),
             urdf=Path(urdf),
-            package_dirs=tuple(str(p) for p in robot.get("package_dirs") or []),
+            package_dirs=tuple(package_dirs),
             model=model,
             hand_joints=hand_joints,
-            hand_idx=hand_idx.astype(np.intp),
+            hand_idx=hand_idx,
             palm_frame_id=palm_frame_id,
             law=law,
-            grasp_pose=_numbers(_key(data, "grasp_pose"), "grasp_pose", (7,)),
-            path=_numbers(_key(data, "path"), "path", (-1, model.nq)),
+            grasp_pose=_toml.pose(_key(data, "grasp_pose", where), f"{where}grasp_pose"),
+            path=_path(_key(data, "path", where), f"{where}path", model),
             obstacles=obstacles,
             object=None
-            if not raw_object
-            else Shape.from_table(raw_object, "scene.object", is_object=True),
+            if raw_object is None
+            else Shape.from_table(raw_object, f"{where}scene.object", is_object=True),
+            contents=data,
         )
 
     @classmethod
@@ -303,6 +383,7 @@ class PlanFile:
             path=plan.path,
             obstacles=tuple(plan.problem.obstacles),
             object=plan.problem.object,
+            contents=plan.to_dict(),
         )
 
     @property

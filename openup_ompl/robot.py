@@ -33,6 +33,7 @@ from openup_ompl.urdf import (
     _merged_urdf,
     _resolve_chains,
     cache_dir,
+    remove_srdf_pairs,
     urdf_mimic,
     urdf_tree,
 )
@@ -264,7 +265,8 @@ def load_robot(name_or_path: str | Path = "panda") -> Robot:
 
     Raises:
         RobotNotFound: No robot of that name and no such file.
-        ConfigError: The file holds a bad value (named in the message).
+        ConfigError: The file holds a bad value (named in the message), or its URDF or
+            SRDF is not one pinocchio can load.
         JointNotFound, FrameNotFound: The file names a joint or frame the URDF lacks.
     """
     spec = RobotSpec.from_file(find_robot_file(name_or_path))
@@ -303,13 +305,13 @@ def load_robot(name_or_path: str | Path = "panda") -> Robot:
         srdf = _merged_srdf(
             spec, mount, hand_srdf, [(body.name, hand_root), *mount.disable_collisions]
         )
-        pin.removeCollisionPairs(model, collision, str(srdf))
+        remove_srdf_pairs(model, collision, srdf, f"{spec.path.name}: merged srdf")
     else:
         if spec.convex:
             _convex_hulls(collision)
         collision.addAllCollisionPairs()
         if spec.srdf is not None:
-            pin.removeCollisionPairs(model, collision, str(spec.srdf))
+            remove_srdf_pairs(model, collision, spec.srdf, f"{spec.path.name}: srdf")
     mimic = _resolve_chains(
         urdf_mimic(urdf_tree(urdf, f"{spec.path.name}: urdf")), spec.hand_joints
     )

@@ -15,6 +15,7 @@ import numpy as np
 from openup_ompl import _toml
 from openup_ompl._resources import data_dir, resolve_path
 from openup_ompl.exceptions import ConfigError, RobotNotFound
+from openup_ompl.hand_law import MGA_MIN
 
 
 @dataclass(frozen=True)
@@ -55,6 +56,17 @@ class MountSpec:
     disable_collisions: tuple[tuple[str, str], ...] = ()
 
 
+def _srdf_path(raw: Any, base: Path, where: str) -> Path | None:
+    """An SRDF path resolved against ``base``, or ``None``: pinocchio reads an SRDF only
+    from a file named ``*.srdf``."""
+    if raw is None:
+        return None
+    path = resolve_path(_toml.string(raw, where), base, where)
+    if path.suffix != ".srdf":
+        raise ConfigError(where, raw, "an SRDF file, its name ending in .srdf")
+    return path
+
+
 def _mount_spec(raw: Any, where: str, base: Path) -> MountSpec:
     if not isinstance(raw, dict):
         raise ConfigError(f"{where}: mount", raw, "a [mount] table")
@@ -78,9 +90,7 @@ def _mount_spec(raw: Any, where: str, base: Path) -> MountSpec:
             base,
             f"{where}: mount.urdf",
         ),
-        srdf=None
-        if srdf is None
-        else resolve_path(_toml.string(srdf, f"{where}: mount.srdf"), base, f"{where}: mount.srdf"),
+        srdf=_srdf_path(srdf, base, f"{where}: mount.srdf"),
         frame=_toml.string(_toml.require(raw, "frame", f"{where}: mount"), f"{where}: mount.frame"),
         pose=_toml.pose(_toml.require(raw, "pose", f"{where}: mount"), f"{where}: mount.pose"),
         prefix=prefix,
@@ -134,7 +144,7 @@ class RobotSpec:
         c: Close preshape (hand-joint order).
         b: Base open configuration.
         w: Widest opening.
-        mga: Normalised distance of maximum grip aperture, in (0, 1].
+        mga: Normalised distance of maximum grip aperture, in [MGA_MIN, 1] (0.01).
         u: Default pose uncertainty in [0, 1].
         closed: The configuration each hand joint closes towards when grasping
             (:mod:`~openup_ompl.grasp`), or ``None``: the joint limit on ``c``'s side of
@@ -206,9 +216,7 @@ class RobotSpec:
                 path.parent,
                 f"{where}: urdf",
             ),
-            srdf=None
-            if srdf is None
-            else resolve_path(_toml.string(srdf, f"{where}: srdf"), path.parent, f"{where}: srdf"),
+            srdf=_srdf_path(srdf, path.parent, f"{where}: srdf"),
             palm_frame=_toml.string(
                 _toml.require(raw, "palm_frame", where), f"{where}: palm_frame"
             ),
@@ -227,7 +235,7 @@ class RobotSpec:
             mga=_toml.number(
                 _toml.require(table, "mga", f"{where}: hand"),
                 f"{where}: hand.mga",
-                low=1e-9,
+                low=MGA_MIN,
                 high=1.0,
             ),
             u=_toml.number(table.get("u", 0.0), f"{where}: hand.u", low=0.0, high=1.0),

@@ -67,10 +67,13 @@ __all__ = [
     "CSV_COLUMNS",
     "EXECUTIONS",
     "MAX_DELTA",
+    "MAX_SEEDS",
     "PHYSICS_COLUMNS",
+    "SEED_LIMIT",
     "RobustnessOptions",
     "RobustnessResult",
     "check_scene",
+    "check_seeds",
     "default_robustness_scene",
     "displaced",
     "execute",
@@ -104,6 +107,11 @@ PHYSICS_COLUMNS = ("touched", "moved_mm")
 EXECUTIONS = ("kinematic", "physics")
 #: Largest pose error [m] accepted: beyond it the "error" is a different scene.
 MAX_DELTA = 0.25
+#: Most plans per ``u`` accepted (``seeds``): 10 give the shipped tables, and every plan is
+#: a process of up to ``time_limit`` seconds.
+MAX_SEEDS = 10_000
+#: Seeds are below this (OMPL's and numpy's generators take them as 32-bit integers).
+SEED_LIMIT = 2**31
 
 
 def default_robustness_scene() -> Path:
@@ -175,10 +183,7 @@ class RobustnessOptions:
             "yaws",
             values("yaw", self.yaws, lambda x: abs(x) <= math.pi, "angles in [-pi, pi] rad"),
         )
-        if not (isinstance(self.seeds, int) and self.seeds >= 1):
-            raise ConfigError("seeds", self.seeds, "an integer >= 1")
-        if not (isinstance(self.first_seed, int) and 0 <= self.first_seed < 2**31 - self.seeds):
-            raise ConfigError("seed", self.first_seed, "an integer seed in [0, 2^31)")
+        check_seeds(self.first_seed, self.seeds, MAX_SEEDS, "seeds")
         check_planner(self.planner)
         check_time_limit(self.time_limit, "time")
         if not (math.isfinite(self.friction) and self.friction >= 0):
@@ -196,6 +201,25 @@ class RobustnessOptions:
             planner=self.planner,
             time_limit=self.time_limit,
             simplify=True,
+        )
+
+
+def check_seeds(first: int, count: int, most: int, where: str) -> None:
+    """Refuse a run of seeds ``first, ..., first + count - 1`` (``where`` names ``count``)
+    that is empty, longer than ``most`` or reaches :data:`SEED_LIMIT`.
+
+    Raises:
+        ConfigError: Naming ``where``, ``seed`` or their sum.
+    """
+    if not (isinstance(count, int) and 1 <= count <= most):
+        raise ConfigError(where, count, f"an integer in [1, {most}]")
+    if not (isinstance(first, int) and 0 <= first < SEED_LIMIT):
+        raise ConfigError("seed", first, "an integer seed in [0, 2^31)")
+    if first + count - 1 >= SEED_LIMIT:
+        raise ConfigError(
+            f"seed + {where} - 1",
+            first + count - 1,
+            f"a last seed below 2^31 (seed {first} with {where} {count})",
         )
 
 

@@ -37,11 +37,19 @@ def _write_cached(text: str, stem: str, suffix: str) -> Path:
     return path
 
 
-def urdf_tree(path: Path, where: str) -> ET.Element:
+def urdf_tree(path: Path, where: str, kind: str = "URDF") -> ET.Element:
+    """The root ``<robot>`` element of a URDF or SRDF (``kind``), parsed here first so
+    that a file that is not XML is one :class:`ConfigError` instead of urdfdom's C++
+    errors on stderr."""
     try:
-        return ET.parse(path).getroot()
+        root = ET.parse(path).getroot()
     except (OSError, ET.ParseError) as error:
-        raise ConfigError(where, str(path), f"a readable URDF ({error})") from None
+        raise ConfigError(where, str(path), f"a readable {kind} ({error})") from None
+    if root.tag != "robot":
+        raise ConfigError(
+            where, str(path), f"{kind} XML with a <robot> root element, not <{root.tag}>"
+        )
+    return root
 
 
 def urdf_mimic(root: ET.Element) -> tuple[MimicSpec, ...]:
@@ -134,7 +142,7 @@ def _merged_urdf(
         absolute_meshes(hand_abs, mount.urdf, [*package_dirs, str(mount.urdf.parent)])
         hand_urdf = _write_cached(ET.tostring(hand_abs, encoding="unicode"), "hand", ".urdf")
         if mount.srdf is not None:
-            srdf = urdf_tree(mount.srdf, f"{where}.srdf")
+            srdf = urdf_tree(mount.srdf, f"{where}.srdf", "SRDF")
             _prefix_names(srdf, mount.prefix)
             hand_srdf = _write_cached(ET.tostring(srdf, encoding="unicode"), "hand", ".srdf")
     absolute_meshes(arm, spec.urdf, package_dirs)
@@ -180,6 +188,7 @@ def _merged_urdf(
 
 
 def _build(urdf: Path, package_dirs: list[str], where: str) -> tuple[pin.Model, pin.GeometryModel]:
+    urdf_tree(urdf, where)
     try:
         model = pin.buildModelFromUrdf(str(urdf))
         with warnings.catch_warnings():
@@ -201,6 +210,22 @@ def _convex_hulls(geometry_model: pin.GeometryModel) -> None:
             geometry.geometry = shape.convex
 
 
+def remove_srdf_pairs(
+    model: pin.Model, collision: pin.GeometryModel, srdf: Path, where: str
+) -> None:
+    """Leave out of ``collision`` the pairs the SRDF disables.
+
+    Raises:
+        ConfigError: The file is not an SRDF pinocchio can read (named at ``where``),
+            instead of pinocchio's ``RuntimeError``.
+    """
+    urdf_tree(srdf, where, "SRDF")
+    try:
+        pin.removeCollisionPairs(model, collision, str(srdf))
+    except (RuntimeError, ValueError) as error:
+        raise ConfigError(where, str(srdf), f"a loadable SRDF ({error})") from None
+
+
 def _merged_srdf(
     spec: RobotSpec, mount: MountSpec, hand_srdf: Path | None, pairs: list[tuple[str, str]]
 ) -> Path:
@@ -208,7 +233,7 @@ def _merged_srdf(
     merged = ET.Element("robot", {"name": spec.name})
     for srdf, where in ((spec.srdf, "srdf"), (hand_srdf, "mount.srdf")):
         if srdf is not None:
-            root = urdf_tree(srdf, f"{spec.path.name}: {where}")
+            root = urdf_tree(srdf, f"{spec.path.name}: {where}", "SRDF")
             merged.extend(root.iter("disable_collisions"))
     for a, b in pairs:
         ET.SubElement(merged, "disable_collisions", {"link1": a, "link2": b, "reason": "Never"})

@@ -114,9 +114,11 @@ def closed_loop_command(args: argparse.Namespace) -> int:
     trials = args.out / "closed_loop_trials.json"
     trials.write_text(json.dumps(records, indent=1, default=str) + "\n")
     for row in rows:
+        mean_u = "none" if row["mean_u"] is None else f"{row['mean_u']:.3f}"
+        unseen = f", {row['not_seen']} not seen" if row["not_seen"] else ""
         print(
             f"{row['policy']:>10}  noise {row['noise']:<4g} distance {row['distance']:<4g}"
-            f" {row['successes']}/{row['trials']} (mean u {row['mean_u']:.3f})"
+            f" {row['successes']}/{row['trials']} (mean u {mean_u}{unseen})"
         )
     print(f"table written to {csv_path}; every trial in {trials}")
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 import csv
 import dataclasses
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -30,6 +30,7 @@ from openup_ompl.exceptions import ConfigError, InvalidProblem, PerceptionError,
 from openup_ompl.perception.camera import CameraOptions, DepthCamera
 from openup_ompl.perception.noise import NoiseOptions
 from openup_ompl.perception.perceive import at_estimate, perceive
+from openup_ompl.robustness import check_seeds, execute
 from openup_ompl.scene import Problem
 
 if TYPE_CHECKING:
@@ -38,6 +39,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "CSV_COLUMNS",
+    "MAX_TRIALS",
     "ClosedLoopOptions",
     "Judge",
     "closed_loop",
@@ -58,7 +60,10 @@ CSV_COLUMNS = (
     "mean_u",
     "mean_error_mm",
     "planning_failures",
+    "not_seen",
 )
+#: Most views per noise and distance accepted (``trials``).
+MAX_TRIALS = 10_000
 
 Judge = Callable[["GraspPlanningSetup", "Plan", Problem], dict[str, Any]]
 
@@ -96,8 +101,7 @@ class ClosedLoopOptions:
                     value = math.nan
                 if not 0 <= value <= 1:
                     raise ConfigError("policy", policy, "a u in [0, 1] or 'covariance'")
-        if not (isinstance(self.trials, int) and self.trials >= 1):
-            raise ConfigError("trials", self.trials, "an integer >= 1")
+        check_seeds(self.first_seed, self.trials, MAX_TRIALS, "trials")
         for noise in self.noises:
             NoiseOptions(scale=noise)
         for distance in self.distances:
@@ -108,8 +112,6 @@ def kinematic_judge(setup: GraspPlanningSetup, plan: Plan, truth: Problem) -> di
     """:func:`openup_ompl.robustness.execute` against the true object: its planar offset
     and yaw from the estimate (the estimate's height and tilt errors are kept: the judge
     is planar, as the paper's experiment is)."""
-    from openup_ompl.robustness import execute
-
     estimate, true = setup.problem.object, truth.object
     assert estimate is not None and true is not None
     dx, dy = (true.pose[:2] - estimate.pose[:2]).tolist()
@@ -145,16 +147,19 @@ def closed_loop(
                         rng=np.random.default_rng(seed),
                     )
                 except PerceptionError as error:
+                    # No estimate, so nothing to plan: the trial is "not seen" (not a
+                    # planning failure); a fixed policy still has its u, the covariance none.
                     for policy in options.policies:
                         records.append(
                             {
                                 **base,
                                 "policy": policy,
+                                "u": None if policy == "covariance" else float(policy),
+                                "error_mm": None,
+                                "seen": False,
+                                "planned": False,
                                 "success": False,
                                 "error": str(error),
-                                "u": math.nan,
-                                "error_mm": math.nan,
-                                "planned": False,
                             }
                         )
                     continue
@@ -162,7 +167,13 @@ def closed_loop(
                 error_mm = float(np.linalg.norm(seen.pose[:2] - problem.object.pose[:2]) * 1e3)
                 for policy in options.policies:
                     u = seen.u if policy == "covariance" else float(policy)
-                    record = {**base, "policy": policy, "u": u, "error_mm": error_mm}
+                    record: dict[str, Any] = {
+                        **base,
+                        "policy": policy,
+                        "u": u,
+                        "error_mm": error_mm,
+                        "seen": True,
+                    }
                     try:
                         setup = GraspPlanningSetup(estimated, u=u)
                         plan = setup.solve(
@@ -183,8 +194,17 @@ def closed_loop(
     return records
 
 
+def _mean(values: Iterable[float | None]) -> float | None:
+    """The mean of the known (finite) values, ``None`` without any."""
+    known = [float(v) for v in values if v is not None and math.isfinite(v)]
+    return float(np.mean(known)) if known else None
+
+
 def summarize(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
-    """One row per (policy, noise, distance) with the :data:`CSV_COLUMNS`."""
+    """One row per (policy, noise, distance) with the :data:`CSV_COLUMNS`: ``mean_u`` and
+    ``mean_error_mm`` over the trials that have one (``None`` if none has), planning
+    failures among the views that saw the object, and the views that did not
+    (``not_seen``)."""
     cells: dict[tuple[str, float, float], list[dict[str, Any]]] = {}
     for record in records:
         key = (record["policy"], record["noise"], record["distance"])
@@ -200,16 +220,22 @@ def summarize(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
                 "trials": len(group),
                 "successes": successes,
                 "success_rate": successes / len(group),
-                "mean_u": float(np.nanmean([r["u"] for r in group])),
-                "mean_error_mm": float(np.nanmean([r["error_mm"] for r in group])),
-                "planning_failures": sum(not r["planned"] for r in group),
+                "mean_u": _mean(r["u"] for r in group),
+                "mean_error_mm": _mean(r["error_mm"] for r in group),
+                "planning_failures": sum(r.get("seen", True) and not r["planned"] for r in group),
+                "not_seen": sum(not r.get("seen", True) for r in group),
             }
         )
     return rows
 
 
+def _decimals(value: float | None, digits: int) -> str:
+    return "" if value is None else f"{value:.{digits}f}"
+
+
 def write_csv(rows: Sequence[dict[str, Any]], path: Path) -> Path:
-    """The experiment's CSV: :data:`CSV_COLUMNS`, one row per cell."""
+    """The experiment's CSV: :data:`CSV_COLUMNS`, one row per cell (an unknown mean left
+    empty)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     with path.open("w", newline="") as handle:
         writer = csv.DictWriter(handle, fieldnames=list(CSV_COLUMNS))
@@ -218,24 +244,27 @@ def write_csv(rows: Sequence[dict[str, Any]], path: Path) -> Path:
             writer.writerow(
                 {
                     **row,
-                    "success_rate": f"{row['success_rate']:.4f}",
-                    "mean_u": f"{row['mean_u']:.4f}",
-                    "mean_error_mm": f"{row['mean_error_mm']:.3f}",
+                    "success_rate": _decimals(row["success_rate"], 4),
+                    "mean_u": _decimals(row["mean_u"], 4),
+                    "mean_error_mm": _decimals(row["mean_error_mm"], 3),
                 }
             )
     return path
 
 
 def read_csv(path: Path) -> list[dict[str, Any]]:
-    """Rows of a CSV written by :func:`write_csv`, numbers as numbers."""
+    """Rows of a CSV written by :func:`write_csv`, numbers as numbers (an empty mean as
+    ``None``)."""
     with path.open(newline="") as handle:
         rows = list(csv.DictReader(handle))
-    kinds: dict[str, type] = {"trials": int, "successes": int, "planning_failures": int}
+    ints = ("trials", "successes", "planning_failures", "not_seen")
     floats = ("noise", "distance", "success_rate", "mean_u", "mean_error_mm")
-    return [
-        {
-            key: kinds[key](value) if key in kinds else float(value) if key in floats else value
-            for key, value in row.items()
-        }
-        for row in rows
-    ]
+
+    def number(key: str, value: str) -> Any:
+        if key in ints:
+            return int(value)
+        if key in floats:
+            return float(value) if value else None
+        return value
+
+    return [{key: number(key, value) for key, value in row.items()} for row in rows]

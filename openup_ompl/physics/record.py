@@ -6,23 +6,36 @@ offset, seed and options give the same file byte for byte.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
+import types
+import typing
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from openup_ompl import _toml
 from openup_ompl._io import read_json, write_atomic
+from openup_ompl.exceptions import ConfigError
+from openup_ompl.plan import number_rows
 
 __all__ = [
     "EXECUTION_FORMAT",
+    "PHASES",
     "ExecutionRecord",
+    "check_execution",
     "is_execution",
     "read_execution",
     "write_execution",
 ]
 
 EXECUTION_FORMAT = "openup-execution/1"
+
+#: The rollout's phases, in order (:mod:`~openup_ompl.physics.rollout`).
+PHASES = ("settle", "reach", "close", "lift", "hold")
 
 
 @dataclass
@@ -130,9 +143,95 @@ def is_execution(path: str | Path) -> bool:
 
 
 def read_execution(path: str | Path) -> dict[str, Any]:
-    """Read an ``execution.json`` and check its format.
+    """Read an ``execution.json`` and check it (:func:`check_execution`).
 
     Raises:
-        ConfigError: Not a readable execution file.
+        ConfigError: Not a readable execution file, or a key missing or holding a bad
+            value, located at ``<file name>: <key>``.
     """
-    return read_json(path, EXECUTION_FORMAT, "execution file")
+    path = Path(path)
+    data = read_json(path, EXECUTION_FORMAT, "execution file")
+    check_execution(data, f"{path.name}: ")
+    return data
+
+
+#: What a JSON value of each Python type is called in errors.
+_JSON_NAMES = {
+    bool: "true or false",
+    int: "an integer",
+    str: "a string",
+    dict: "an object",
+    list: "a list",
+    type(None): "null",
+}
+
+
+def _json_types(hint: Any) -> tuple[type, ...]:
+    """The JSON value types (``dict``, ``list``, ``str``, ...) a field's hint allows."""
+    union = typing.get_origin(hint) in (typing.Union, types.UnionType)
+    return tuple(typing.get_origin(a) or a for a in (typing.get_args(hint) if union else (hint,)))
+
+
+def check_execution(data: dict[str, Any], where: str = "") -> None:
+    """Check an execution file's contents: every field of :class:`ExecutionRecord`
+    (``frames`` and ``source`` may be absent) with its JSON type, and the values the viewer
+    reads (``offset``, ``first_contact``, ``frames``). ``source`` is checked where it is
+    replayed (:meth:`~openup_ompl.plan.PlanFile.from_dict`).
+
+    Raises:
+        ConfigError: A key missing or holding a bad value, located at ``where + key``.
+    """
+    hints = typing.get_type_hints(ExecutionRecord)
+    for spec in dataclasses.fields(ExecutionRecord):
+        if spec.name not in data:
+            if spec.default is dataclasses.MISSING:
+                raise ConfigError(f"{where}{spec.name}", None, "a value (the key is missing)")
+            continue
+        value, allowed = data[spec.name], _json_types(hints[spec.name])
+        if not isinstance(value, allowed) or (isinstance(value, bool) and bool not in allowed):
+            expected = " or ".join(_JSON_NAMES[t] for t in allowed)
+            raise ConfigError(f"{where}{spec.name}", value, expected)
+    offset = data["offset"]
+    for key in ("dx", "dy", "yaw"):
+        _toml.number(_toml.require(offset, key, f"{where}offset"), f"{where}offset.{key}")
+    first = data["first_contact"]
+    if first is not None:
+        at = f"{where}first_contact"
+        _toml.string(_toml.require(first, "link", at), f"{at}.link")
+        _toml.number(_toml.require(first, "time_s", at), f"{at}.time_s", low=0.0)
+        if first.get("d") is not None:
+            _toml.number(first["d"], f"{at}.d", low=0.0)
+        _phase(_toml.require(first, "phase", at), f"{at}.phase")
+    if data.get("frames") is not None:
+        _check_frames(data["frames"], f"{where}frames")
+
+
+def _phase(value: Any, where: str) -> None:
+    if value not in PHASES:
+        raise ConfigError(where, value, f"one of {list(PHASES)}")
+
+
+def _check_frames(frames: dict[str, Any], where: str) -> None:
+    """The sampled rollout: a period > 0, one configuration of ``joint_names``, one object
+    pose (a unit quaternion) and one phase per frame."""
+    period = _toml.number(_toml.require(frames, "period_s", where), f"{where}.period_s")
+    if period <= 0.0:
+        raise ConfigError(f"{where}.period_s", period, "a period > 0 [s]")
+    names = _toml.string_list(_toml.require(frames, "joint_names", where), f"{where}.joint_names")
+    q = number_rows(_toml.require(frames, "q", where), f"{where}.q", len(names))
+    poses = number_rows(_toml.require(frames, "object", where), f"{where}.object", 7)
+    phases = _toml.require(frames, "phase", where)
+    per_frame = f"one per row of frames.q ({len(q)})"
+    if len(poses) != len(q):
+        raise ConfigError(f"{where}.object", f"{len(poses)} rows", per_frame)
+    if not isinstance(phases, list) or len(phases) != len(q):
+        shown = f"{len(phases)} entries" if isinstance(phases, list) else phases
+        raise ConfigError(f"{where}.phase", shown, per_frame)
+    norms = np.linalg.norm(poses[:, 3:], axis=1)
+    bad = np.flatnonzero(np.abs(norms - 1.0) > 1e-3)
+    if bad.size:
+        k = int(bad[0])
+        expected = "[x, y, z, qx, qy, qz, qw] with a unit quaternion"
+        raise ConfigError(f"{where}.object[{k}]", poses[k].tolist(), expected)
+    for k, phase in enumerate(phases):
+        _phase(phase, f"{where}.phase[{k}]")

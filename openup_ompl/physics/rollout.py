@@ -37,10 +37,9 @@ from openup_ompl.physics.options import PhysicsOptions
 from openup_ompl.physics.record import ExecutionRecord
 from openup_ompl.physics.trajectory import time_path
 from openup_ompl.physics.world import OBJECT, OBSTACLE, ROBOT, World, build_world
+from openup_ompl.plan import PlanFile
 
 __all__ = ["Rollout", "check_offset", "closed_targets", "execute_plan", "lift_rows"]
-
-PHASES = ("settle", "reach", "close", "lift", "hold")
 
 
 def check_offset(offset: Sequence[float]) -> tuple[float, float, float]:
@@ -173,20 +172,28 @@ class Rollout:
     runs every offset of a plan through one :class:`Rollout`.
 
     Args:
-        data: The plan file's contents (:func:`~openup_ompl.plan.read_plan`).
+        plan: The plan, as read (:meth:`~openup_ompl.plan.PlanFile.read`), or a plan
+            file's contents (checked here as ``show`` checks them).
         options: Physics settings.
 
     Raises:
-        ConfigError: A missing URDF, or a plan MuJoCo cannot build.
+        ConfigError: A plan file's contents that fail their check
+            (:meth:`~openup_ompl.plan.PlanFile.from_dict`), a plan without an object, or a
+            plan MuJoCo cannot build.
     """
 
-    def __init__(self, data: dict[str, Any], options: PhysicsOptions | None = None) -> None:
+    def __init__(
+        self, plan: PlanFile | dict[str, Any], options: PhysicsOptions | None = None
+    ) -> None:
         import mujoco
 
+        if not isinstance(plan, PlanFile):
+            plan = PlanFile.from_dict(plan, where="plan ")
+        self.plan = plan
         self.options = options or PhysicsOptions()
-        self.data = data
+        self.data = data = plan.contents
         self.world = build_world(data, self.options)
-        self.path = np.asarray(data["path"], dtype=float)
+        self.path = plan.path
         self.timed = time_path(
             self.path, self.world.velocity_limit, self.options.speed, self.options.acceleration
         )
@@ -197,9 +204,8 @@ class Rollout:
         # kv / kp of each joint's actuator [s]: the velocity feed-forward's lead.
         gains = model.actuator_gainprm[self.world.actuator, 0]
         self.lead = -model.actuator_biasprm[self.world.actuator, 2] / gains
-        law = data.get("hand_law") or {}
-        self.goal = np.asarray(data.get("grasp_pose", [0.0] * 7), dtype=float)[:3]
-        self.start_distance = float(law.get("start_palm_distance") or 0.0)
+        self.goal = plan.grasp_pose[:3]
+        self.start_distance = float(data["hand_law"].get("start_palm_distance") or 0.0)
 
     def run(
         self, offset: Sequence[float] = (0.0, 0.0, 0.0), seed: int = 0, frames: bool = True
@@ -512,22 +518,27 @@ class Rollout:
 
 
 def execute_plan(
-    plan: str | Path | dict[str, Any],
+    plan: str | Path | PlanFile | dict[str, Any],
     offset: Sequence[float] = (0.0, 0.0, 0.0),
     *,
     seed: int = 0,
     options: PhysicsOptions | None = None,
     frames: bool = True,
 ) -> ExecutionRecord:
-    """Execute a plan file (or its contents) in physics with the object displaced by
-    ``offset = (dx, dy, yaw)`` [m, m, rad] (module docstring).
+    """Execute a plan file (or the plan read, or its contents) in physics with the object
+    displaced by ``offset = (dx, dy, yaw)`` [m, m, rad] (module docstring).
 
     Raises:
-        ConfigError: Not an ``openup-plan/1`` file, a missing URDF, a non-finite offset.
+        ConfigError: A non-finite offset; a file that is not ``openup-plan/1`` or fails
+            the check ``show`` applies (:meth:`~openup_ompl.plan.PlanFile.read`: a
+            missing URDF, a path row beyond a joint limit, a bad law, ...); a plan
+            without an object.
         SimulationDiverged: MuJoCo went unstable (then no verdict is given).
     """
-    from openup_ompl.plan import read_plan
-
     check_offset(offset)
-    data = read_plan(plan) if not isinstance(plan, dict) else plan
-    return Rollout(data, options).run(offset, seed=seed, frames=frames)
+    if not isinstance(plan, (PlanFile, dict)):
+        path = Path(plan)
+        plan = PlanFile.read(path)
+        if plan.object is None:
+            raise ConfigError(f"{path.name}: scene.object", None, "an object to grasp")
+    return Rollout(plan, options).run(offset, seed=seed, frames=frames)

@@ -28,6 +28,32 @@ LAW_COLOR = "#333333"
 MGA_COLOR = "#d62728"
 
 
+def figure_path(out: str | Path, where: str = "out") -> Path:
+    """The file a figure saved to ``out`` lands in: ``out`` itself, or ``out.png`` for a
+    name without a suffix (as matplotlib's ``savefig`` does), so that callers report the
+    real path.
+
+    Raises:
+        ConfigError: ``out`` is a directory, or its suffix a format matplotlib cannot
+            write (the message lists those it can), named at ``where``.
+        MissingExtra: matplotlib is not installed.
+    """
+    path = Path(out)
+    if path.is_dir():
+        raise ConfigError(where, str(path), "an image file to write (this is a directory)")
+    if not path.suffix:
+        path = path.with_name(f"{path.name}.png")
+    _pyplot()
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    formats = sorted(FigureCanvasBase.get_supported_filetypes())
+    if path.suffix[1:].lower() not in formats:
+        raise ConfigError(
+            where, str(out), f"an image file ending in one of {', '.join('.' + f for f in formats)}"
+        )
+    return path
+
+
 def _groups(columns: np.ndarray) -> list[list[int]]:
     """Indices of identical columns of ``columns`` (rows: c, b, w, then any values)."""
     groups: list[list[int]] = []
@@ -130,8 +156,10 @@ def plot_hand_law(
 
     Raises:
         MissingExtra: matplotlib is not installed.
-        ConfigError: The plan file is not a readable plan.
+        ConfigError: The plan file is not a readable plan; ``out`` a directory or in a
+            format matplotlib cannot write (:func:`figure_path`).
     """
+    path = figure_path(out)
     plt = _pyplot()
     scene = _plan_scene(plan)
     law, hand = scene.law, scene.hand_path
@@ -196,7 +224,7 @@ def plot_hand_law(
     )
     axes[0, 1].set_title(f"{scene.plan.planner}: the hand along the reach")
     fig.tight_layout()
-    return _save(fig, out, dpi)
+    return _save(fig, path, dpi)
 
 
 def plot_law(
@@ -214,7 +242,7 @@ def plot_law(
     Args:
         law: The law (``c``, ``b``, ``w``, ``mga``, limits); its ``u`` is replaced by each
             of ``us``.
-        out: PNG file to write.
+        out: Image file to write (``.png`` added to a name without a suffix).
         us: Pose uncertainties to draw, each in [0, 1].
         joint_names: Hand joint names (default ``joint 0``, ``joint 1``, ...).
         prismatic: Per hand joint, whether it is prismatic (drawn in mm, else degrees);
@@ -223,14 +251,16 @@ def plot_law(
         dpi: Resolution [dot/inch].
 
     Returns:
-        The PNG's path.
+        The image's path.
 
     Raises:
         MissingExtra: matplotlib is not installed.
-        ConfigError: No ``u`` given, or one outside [0, 1].
+        ConfigError: No ``u`` given, or one outside [0, 1]; ``out`` a directory or
+            in a format matplotlib cannot write (:func:`figure_path`).
     """
     if not us:
         raise ConfigError("u", list(us), "at least one u in [0, 1]")
+    path = figure_path(out)
     laws = [law.with_options(u=float(u), fixed=None) for u in us]
     plt = _pyplot()
     names = list(joint_names or [f"joint {j}" for j in range(law.size)])
@@ -265,4 +295,4 @@ def plot_law(
     variant += ", open arrival" if law.open_arrival else ""
     axes[0, 0].set_title(title or f"hand law (Algorithm 3), mga = {law.mga:g}{variant}")
     fig.tight_layout()
-    return _save(fig, out, dpi)
+    return _save(fig, path, dpi)

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from openup_ompl.exceptions import ConfigError
+from openup_ompl.plan import PlanFile
 from openup_ompl.viz._scene import PlanScene
 
 __all__ = ["ShownExecution", "key_frames", "show_execution", "write_rollout_storyboard"]
@@ -34,13 +35,26 @@ class ShownExecution:
     storyboard: Path
 
 
-def _loaded(execution: dict[str, Any]) -> tuple[PlanScene, dict[str, Any]]:
+def _loaded(execution: dict[str, Any], where: str = "") -> tuple[PlanScene, dict[str, Any]]:
+    """The executed plan's scene and the frames of an execution file's contents (as
+    :func:`~openup_ompl.physics.record.read_execution` checked them); ``where`` prefixes
+    error locations (the file's name)."""
     frames, source = execution.get("frames"), execution.get("source")
-    if not frames or not source:
+    if not frames:
         raise ConfigError(
-            "execution frames", None, "an execution.json written with its frames (execute)"
+            f"{where}frames", None, "an execution.json written with its frames (execute)"
         )
-    return PlanScene.from_dict(source, "execution"), frames
+    if not isinstance(source, dict):
+        raise ConfigError(
+            f"{where}source", source, "the executed plan file's contents (kept with the frames)"
+        )
+    plan = PlanFile.from_dict(source, "execution", where=f"{where}source.")
+    names = source["robot"]["joint_names"]
+    if frames["joint_names"] != names:
+        raise ConfigError(
+            f"{where}frames.joint_names", frames["joint_names"], f"{names} (source.robot's)"
+        )
+    return PlanScene.from_plan_file(plan), frames
 
 
 def key_frames(execution: dict[str, Any]) -> list[tuple[int, str]]:
@@ -54,7 +68,8 @@ def key_frames(execution: dict[str, Any]) -> list[tuple[int, str]]:
     first = execution.get("first_contact")
     if first and first["phase"] in ("settle", "reach"):
         k = min(len(phases) - 1, int(first["time_s"] / period))
-        keys.append((k, f"touch: {first['link']}\nd = {first['d']:.2f}"))
+        d = "?" if first["d"] is None else f"{first['d']:.2f}"
+        keys.append((k, f"touch: {first['link']}\nd = {d}"))
     for phase, title in (
         ("reach", "end of reach"),
         ("close", "hand closed"),
@@ -68,7 +83,13 @@ def key_frames(execution: dict[str, Any]) -> list[tuple[int, str]]:
 
 
 def write_rollout_storyboard(execution: dict[str, Any], out: str | Path, dpi: int = 110) -> Path:
-    """Write the storyboard PNG of a rollout (module docstring)."""
+    """Write the storyboard PNG of a rollout (module docstring) from an execution file's
+    contents (:func:`~openup_ompl.physics.record.read_execution`)."""
+    scene, _ = _loaded(execution)
+    return _storyboard(scene, execution, out, dpi)
+
+
+def _storyboard(scene: PlanScene, execution: dict[str, Any], out: str | Path, dpi: int) -> Path:
     from openup_ompl.viz._geometry import placed, shape_mesh
     from openup_ompl.viz._mpl import _pyplot, _save
     from openup_ompl.viz.storyboard import (
@@ -85,7 +106,7 @@ def write_rollout_storyboard(execution: dict[str, Any], out: str | Path, dpi: in
     )
 
     plt = _pyplot()
-    scene, frames = _loaded(execution)
+    frames = execution["frames"]
     robot = _Robot(scene, StoryboardOptions())
     keys = key_frames(execution)
     q = np.asarray(frames["q"], dtype=float)
@@ -164,7 +185,7 @@ def show_execution(execution: str | Path, out_dir: str | Path | None = None) -> 
     _meshcat()
     path = Path(execution)
     data = read_execution(path)
-    scene, frames = _loaded(data)
+    scene, frames = _loaded(data, f"{path.name}: ")
     out = Path(out_dir) if out_dir is not None else path.parent
     period = float(frames["period_s"])
     labels = [f"{phase} {(k + 1) * period:5.2f} s" for k, phase in enumerate(frames["phase"])]
@@ -175,6 +196,6 @@ def show_execution(execution: str | Path, out_dir: str | Path | None = None) -> 
         fps=1.0 / period,
         details=data["verdict"],
     )
-    board = write_rollout_storyboard(data, out / f"{path.stem}_storyboard.png")
+    board = _storyboard(scene, data, out / f"{path.stem}_storyboard.png", dpi=110)
     page = write_html(scene, out / f"{path.stem}.html", motion=motion)
     return ShownExecution(page, board)
