@@ -272,7 +272,7 @@ def load_robot(name_or_path: str | Path = "panda") -> Robot:
     spec = RobotSpec.from_file(find_robot_file(name_or_path))
     srdf = spec.srdf
     package_dirs = [str(erd_share_dir()), str(spec.urdf.parent), str(spec.urdf.parent.parent)]
-    model, collision = _build(spec.urdf, package_dirs, f"{spec.path.name}: urdf")
+    model, collision, urdf_root = _build(spec.urdf, package_dirs, f"{spec.path.name}: urdf")
     urdf = spec.urdf
     mount = spec.mount
     if mount is not None:
@@ -281,8 +281,9 @@ def load_robot(name_or_path: str | Path = "panda") -> Robot:
                 package_dirs.append(str(extra))
         if not any(f.name == mount.frame for f in model.frames):
             raise FrameNotFound(mount.frame, [f.name for f in model.frames])
-        urdf, hand_urdf, hand_srdf = _merged_urdf(spec, mount, model, package_dirs)
-        hand_model, hand_collision = _build(
+        urdf, hand_urdf, hand_srdf = _merged_urdf(spec, mount, model, package_dirs, urdf_root)
+        urdf_root = urdf_tree(urdf, f"{spec.path.name}: merged urdf")
+        hand_model, hand_collision, _ = _build(
             hand_urdf, package_dirs, f"{spec.path.name}: mount.urdf"
         )
         hand_root = hand_model.frames[1].name
@@ -312,9 +313,7 @@ def load_robot(name_or_path: str | Path = "panda") -> Robot:
         collision.addAllCollisionPairs()
         if spec.srdf is not None:
             remove_srdf_pairs(model, collision, spec.srdf, f"{spec.path.name}: srdf")
-    mimic = _resolve_chains(
-        urdf_mimic(urdf_tree(urdf, f"{spec.path.name}: urdf")), spec.hand_joints
-    )
+    mimic = _resolve_chains(urdf_mimic(urdf_root), spec.hand_joints)
     return Robot(
         spec=spec,
         model=model,

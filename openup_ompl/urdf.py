@@ -125,15 +125,19 @@ def _root_link(root: ET.Element) -> str:
 
 
 def _merged_urdf(
-    spec: RobotSpec, mount: MountSpec, arm_model: pin.Model, package_dirs: list[str]
+    spec: RobotSpec,
+    mount: MountSpec,
+    arm_model: pin.Model,
+    package_dirs: list[str],
+    arm: ET.Element,
 ) -> tuple[Path, Path, Path | None]:
-    """Write the merged URDF (and the prefixed hand URDF/SRDF) to the cache.
+    """Write the merged URDF (and the prefixed hand URDF/SRDF) to the cache; ``arm`` is
+    the arm URDF's root element (:func:`_build`'s, changed here).
 
     Returns:
         The merged URDF, the hand URDF to load, the hand SRDF to apply.
     """
     where = f"{spec.path.name}: mount"
-    arm = urdf_tree(spec.urdf, f"{spec.path.name}: urdf")
     hand = urdf_tree(mount.urdf, f"{where}.urdf")
     _prefix_names(hand, mount.prefix)
     hand_urdf, hand_srdf = mount.urdf, mount.srdf
@@ -187,8 +191,13 @@ def _merged_urdf(
     return merged, hand_urdf, hand_srdf
 
 
-def _build(urdf: Path, package_dirs: list[str], where: str) -> tuple[pin.Model, pin.GeometryModel]:
-    urdf_tree(urdf, where)
+def _build(
+    urdf: Path, package_dirs: list[str], where: str
+) -> tuple[pin.Model, pin.GeometryModel, ET.Element]:
+    """The model and collision model of a URDF, and its root element: parsed here first,
+    so that a file that is not URDF XML is one :class:`ConfigError` (see
+    :func:`urdf_tree`)."""
+    root = urdf_tree(urdf, where)
     try:
         model = pin.buildModelFromUrdf(str(urdf))
         with warnings.catch_warnings():
@@ -198,7 +207,7 @@ def _build(urdf: Path, package_dirs: list[str], where: str) -> tuple[pin.Model, 
             )
     except (RuntimeError, ValueError) as error:
         raise ConfigError(where, str(urdf), f"a loadable URDF ({error})") from None
-    return model, collision
+    return model, collision, root
 
 
 def _convex_hulls(geometry_model: pin.GeometryModel) -> None:
