@@ -10,10 +10,10 @@ import csv
 import importlib.util
 import json
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+from test_cli import assert_one_error_line, run_cli
 
 import openup_ompl as ou
 from openup_ompl.benchmark import summarize
@@ -27,25 +27,12 @@ PANDA_SRDF = 'srdf = "example-robot-data://panda_description/srdf/panda.srdf"'
 PANDA_URDF = 'urdf = "example-robot-data://panda_description/urdf/panda.urdf"'
 
 
-def run_cli(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
-    """Run ``python -m openup_ompl ARGS`` in ``cwd`` and capture its output."""
-    return subprocess.run(
-        [sys.executable, "-m", "openup_ompl", *args],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        cwd=cwd,
-    )
-
-
 def assert_bad_input(result: subprocess.CompletedProcess[str], *named: str) -> None:
     """Exit status 2, exactly one stderr line, no traceback, every ``named`` text in it."""
     assert result.returncode == 2, (result.stdout, result.stderr)
-    lines = result.stderr.splitlines()
-    assert len(lines) == 1, result.stderr
-    assert "Traceback" not in result.stderr
+    assert_one_error_line(result)
     for text in named:
-        assert text in lines[0], lines[0]
+        assert text in result.stderr, result.stderr
 
 
 @pytest.fixture
