@@ -61,13 +61,16 @@ def palm_distance(
 MGA_MIN = 0.01
 
 
-def _check_unit(name: str, value: float, *, low: float = 0.0) -> float:
-    """``value`` as a float if it is a number in ``[low, 1]``, else :class:`ConfigError`."""
+def _check_unit(name: str, value: float, *, low: float = 0.0, low_open: bool = False) -> float:
+    """``value`` as a float if it is a number in ``[low, 1]`` (``(low, 1]`` if
+    ``low_open``), else :class:`ConfigError`."""
+    expected = f"a number in {'(' if low_open else '['}{low:g}, 1]"
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.number)):
-        raise ConfigError(name, value, f"a number in [{low:g}, 1]")
+        raise ConfigError(name, value, expected)
     value = float(value)
-    if not (math.isfinite(value) and low <= value <= 1.0):
-        raise ConfigError(name, value, f"a number in [{low:g}, 1]")
+    above = low < value if low_open else low <= value
+    if not (math.isfinite(value) and above and value <= 1.0):
+        raise ConfigError(name, value, expected)
     return value
 
 
@@ -118,7 +121,8 @@ def open_hand(
         b: Base open configuration.
         w: Widest open configuration.
         u: Pose uncertainty in [0, 1].
-        mga: Normalised distance of maximum grip aperture, in [:data:`MGA_MIN`, 1].
+        mga: Normalised distance of maximum grip aperture, in (0, 1] (a
+            :class:`HandLaw`, which plans, needs at least :data:`MGA_MIN`).
         continuous: Use the variant without the jump at ``mga``.
         open_arrival: Use the variant that arrives at the grasp opened by ``u``.
 
@@ -131,7 +135,8 @@ def open_hand(
             not finite, ``c``, ``b``, ``w`` not finite or of different lengths.
     """
     u = _check_unit("u", u)
-    mga = _check_unit("mga", mga, low=MGA_MIN)
+    # Any mga in (0, 1] is a law; planning needs mga >= MGA_MIN (HandLaw checks that).
+    mga = _check_unit("mga", mga, low_open=True)
     d = _check_distance(d)
     refs = []
     for name, value in (("c", c), ("b", b), ("w", w)):

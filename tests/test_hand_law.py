@@ -132,7 +132,6 @@ def test_open_hand_accepts_mga_one():
         ({"u": 1.5}, "u", "1.5"),
         ({"u": math.nan}, "u", "nan"),
         ({"mga": 0.0}, "mga", "0.0"),
-        ({"mga": 1e-9}, "mga", "1e-09"),  # below MGA_MIN: checks would not end
         ({"mga": 1.5}, "mga", "1.5"),
         ({"mga": "x"}, "mga", "'x'"),
         ({"u": "0.3"}, "u", "'0.3'"),
@@ -226,6 +225,14 @@ def test_hand_law_rejects_a_bad_distance(panda, d):
         law(d)
     with pytest.raises(ou.ConfigError, match="^d: "):
         law.batch(np.array([0.1, d]))
+
+
+def test_open_hand_accepts_a_small_mga_a_hand_law_refuses_it(panda):
+    """open_hand is Algorithm 3 for any mga in (0, 1]; a HandLaw, which plans, needs
+    mga >= MGA_MIN (below it one motion check would not end)."""
+    np.testing.assert_allclose(ou.open_hand(0.0, C, B, W, 0.3, 1e-9), C)
+    with pytest.raises(ou.ConfigError, match="hand.mga"):
+        panda.hand_law(mga=1e-9)
 
 
 def test_hand_law_rejects_crossed_limits(panda):
