@@ -30,8 +30,12 @@ def _parsed(text: str, kind: type, ok: Callable[[float], bool], expected: str) -
     return value
 
 
-def _positive_float(text: str) -> float:
-    return float(_parsed(text, float, lambda v: v > 0, "a positive number"))
+def _time_limit(text: str) -> float:
+    """A time limit [s] in ``(0, planning.TIME_LIMIT_MAX]``."""
+    from openup_ompl.planning import TIME_LIMIT_MAX
+
+    expected = f"a positive number of seconds <= {TIME_LIMIT_MAX:g}"
+    return float(_parsed(text, float, lambda v: 0 < v <= TIME_LIMIT_MAX, expected))
 
 
 def _unit_float(text: str) -> float:
@@ -149,7 +153,7 @@ def build_parser() -> argparse.ArgumentParser:
             help=f"one of {', '.join(PLANNERS)}",
         )
         sub.add_argument(
-            "--time", type=_positive_float, default=default_time, help="planning time limit [s]"
+            "--time", type=_time_limit, default=default_time, help="planning time limit [s]"
         )
         sub.add_argument(
             "--seed",
@@ -244,7 +248,7 @@ def build_parser() -> argparse.ArgumentParser:
         help=f"one or more of {', '.join(PLANNERS)}",
     )
     bench.add_argument("--runs", type=_count, default=10, help="runs per problem, planner and hand")
-    bench.add_argument("--time", type=_positive_float, default=5.0, help="time limit per run [s]")
+    bench.add_argument("--time", type=_time_limit, default=5.0, help="time limit per run [s]")
     bench.add_argument(
         "--fixed-hand", action="store_true", help="also run the fixed preshape (hand frozen at w)"
     )
@@ -321,7 +325,7 @@ def build_parser() -> argparse.ArgumentParser:
     robust.add_argument(
         "--planner", default="ikbirrt", type=_planner, metavar="NAME", help="planner name"
     )
-    robust.add_argument("--time", type=_positive_float, default=5.0, help="time limit per plan [s]")
+    robust.add_argument("--time", type=_time_limit, default=5.0, help="time limit per plan [s]")
     robust.add_argument(
         "--friction", type=float, default=0.5, help="Coulomb coefficient of the grasp test"
     )
@@ -421,7 +425,7 @@ def build_parser() -> argparse.ArgumentParser:
     loop.add_argument(
         "--planner", default="ikbirrt", type=_planner, metavar="NAME", help="planner name"
     )
-    loop.add_argument("--time", type=_positive_float, default=5.0, help="time limit per plan [s]")
+    loop.add_argument("--time", type=_time_limit, default=5.0, help="time limit per plan [s]")
     loop.add_argument(
         "--out", type=Path, default=Path("openup-closed-loop"), help="output directory"
     )
@@ -643,14 +647,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     from ompl import util as ompl_util
 
+    from openup_ompl.executor import seed_ompl
+
     if hasattr(args, "seed"):
         if args.seed is None:
             args.seed = secrets.randbelow(2**31)
         # OMPL's planners draw from one process-wide generator that can only be seeded
         # before any OMPL object exists: do it first, so that the same seed gives the same
-        # plan. OMPL refuses 0 and uses 1 instead, with a two-line warning on stderr: seed
-        # 0 is given OMPL's 1 here, the same draws without the warning.
-        ompl_util.RNG.setSeed(max(args.seed, 1))
+        # plan.
+        seed_ompl(args.seed)
     ompl_util.setLogLevel(ompl_util.LOG_ERROR)
     try:
         return int(args.handler(args))

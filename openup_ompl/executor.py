@@ -45,9 +45,21 @@ __all__ = [
     "load_records",
     "run_task_process",
     "run_tasks",
+    "seed_ompl",
     "selfcheck_task",
     "shard_path",
 ]
+
+
+def seed_ompl(seed: int) -> None:
+    """Seed OMPL's process-wide generator (before any OMPL object exists in the process).
+
+    OMPL refuses 0 with a two-line warning on stderr and draws as from 1: 0 is given 1
+    here, the same draws without the warning.
+    """
+    from ompl import util as ompl_util
+
+    ompl_util.RNG.setSeed(max(int(seed), 1))
 
 
 @dataclass(frozen=True)
@@ -88,7 +100,7 @@ def _execute(task: Task, shards: Path) -> dict[str, Any]:
     """Inside the task process: seed OMPL, call the function, write the shard."""
     from ompl import util as ompl_util
 
-    ompl_util.RNG.setSeed(int(task.seed))
+    seed_ompl(task.seed)
     ompl_util.setLogLevel(ompl_util.LOG_ERROR)
     module, _, name = task.function.partition(":")
     function: Callable[..., dict[str, Any]] = getattr(importlib.import_module(module), name)

@@ -176,6 +176,15 @@ def test_seed_counts_name_the_option_at_fault(tmp_path, args, named):
     assert_bad_input(result, *named)
 
 
+@pytest.mark.parametrize("command", ["plan", "benchmark", "robustness", "closed-loop"])
+def test_time_limit_is_bounded(tmp_path, command):
+    """--time above planning.TIME_LIMIT_MAX (where OMPL's clock overflows) is refused by
+    the parser of every command that plans, before any run."""
+    args = [command, SCENE] if command == "plan" else [command]
+    result = run_cli(*args, "--time", "1e7", "--out", "out", cwd=tmp_path)
+    assert_bad_input(result, "--time", "'1e7'", "1e+06")
+
+
 def test_the_largest_seed_is_accepted():
     """Seed 2^31 - 1 with one plan is in range (the last seed is the first)."""
     options = RobustnessOptions(first_seed=2**31 - 1, seeds=1)

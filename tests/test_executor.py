@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import os
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -45,6 +47,21 @@ def test_pool_records_are_seeded_per_task(tmp_path: Path) -> None:
     assert len(a) == 4 and _deterministic(a) == _deterministic(b)
     assert len({r["pid"] for r in a}) == 4
     assert len({tuple(r["draws"]) for r in a}) == 4
+
+
+def test_seed_zero_draws_as_one_without_a_warning(tmp_path: Path) -> None:
+    """OMPL refuses seed 0 and draws as from 1: a task seeded 0 gives seed 1's draws, and
+    its process writes nothing on stderr."""
+    draws = {}
+    for seed in (0, 1):
+        task = Task(key=f"s{seed}", function=FUNCTION, seed=seed)
+        done = subprocess.run(
+            [sys.executable, "-m", "openup_ompl.executor", str(tmp_path)],
+            input=task.to_json(), capture_output=True, text=True, timeout=120, check=False,
+        )  # fmt: skip
+        assert done.returncode == 0 and done.stderr == "", done.stderr
+        draws[seed] = json.loads(shard_path(tmp_path, task.key).read_text())["draws"]
+    assert draws[0] == draws[1]
 
 
 def test_dask_and_pool_give_the_same_records(tmp_path: Path) -> None:
