@@ -13,6 +13,8 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
+from openup_ompl._io import json_safe
+
 
 def cpu_model() -> str:
     """CPU model name from /proc/cpuinfo ("unknown" elsewhere)."""
@@ -116,18 +118,9 @@ def write_json(path: str | None, payload: dict[str, Any]) -> None:
     if not path:
         return
 
-    def clean(value: Any) -> Any:
-        if isinstance(value, float) and not math.isfinite(value):
-            return None
-        if isinstance(value, dict):
-            return {k: clean(v) for k, v in value.items()}
-        if isinstance(value, (list, tuple)):
-            return [clean(v) for v in value]
-        return value
-
     target = Path(path)
     target.parent.mkdir(parents=True, exist_ok=True)
-    target.write_text(json.dumps(clean(payload), indent=1, allow_nan=False) + "\n")
+    target.write_text(json.dumps(json_safe(payload), indent=1, allow_nan=False) + "\n")
 
 
 def recheck_plans(plans: Sequence[Any]) -> tuple[int, int]:

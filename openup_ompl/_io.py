@@ -4,6 +4,7 @@ JSON formats back."""
 from __future__ import annotations
 
 import json
+import math
 import os
 import tempfile
 from pathlib import Path
@@ -47,3 +48,18 @@ def read_json(path: str | Path, fmt: str, what: str) -> dict[str, Any]:
         found = data.get("format") if isinstance(data, dict) else data
         raise ConfigError(f"{path.name}: format", found, fmt)
     return data
+
+
+def json_safe(value: Any, digits: int | None = None) -> Any:
+    """``value`` (dicts, lists and tuples walked) with every non-finite float as ``None``,
+    since JSON has no NaN; with ``digits``, finite floats rounded to that many significant
+    digits (a file that reads well and stays deterministic)."""
+    if isinstance(value, float):
+        if not math.isfinite(value):
+            return None
+        return value if digits is None else float(f"{value:.{digits}g}")
+    if isinstance(value, dict):
+        return {key: json_safe(item, digits) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_safe(item, digits) for item in value]
+    return value

@@ -37,6 +37,7 @@ import numpy as np
 from ompl import tools as ot
 
 from openup_ompl import _toml
+from openup_ompl._io import json_safe
 from openup_ompl._resources import data_dir
 from openup_ompl.exceptions import ConfigError, InvalidProblem, MissingExtra, OpenUpError
 from openup_ompl.executor import Task, load_records, run_tasks
@@ -321,18 +322,6 @@ def summarize(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     return rows
 
 
-def _json_numbers(value: Any) -> Any:
-    """``value`` with every non-finite float as ``None``: JSON has no NaN (a run's time
-    is NaN when OMPL recorded none)."""
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {key: _json_numbers(item) for key, item in value.items()}
-    if isinstance(value, list):
-        return [_json_numbers(item) for item in value]
-    return value
-
-
 def plot_results(rows: Sequence[dict[str, Any]], out: Path) -> list[Path]:
     """``solve_time.png`` (median bars, 95th-percentile whiskers, log scale) and
     ``success.png`` per problem and planner configuration.
@@ -441,7 +430,7 @@ def run_benchmark(
     db = build_database(records, out)
     rows = summarize(records)
     summary = out / "summary.json"
-    summary.write_text(json.dumps({"rows": _json_numbers(rows)}, indent=1, default=str) + "\n")
+    summary.write_text(json.dumps({"rows": json_safe(rows)}, indent=1, default=str) + "\n")
     drawn: list[Path] = []
     if plots:
         try:

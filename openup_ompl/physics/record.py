@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 import types
 import typing
 from dataclasses import asdict, dataclass, field
@@ -18,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from openup_ompl import _toml
-from openup_ompl._io import read_json, write_atomic
+from openup_ompl._io import json_safe, read_json, write_atomic
 from openup_ompl.exceptions import ConfigError
 from openup_ompl.plan import number_rows
 
@@ -111,18 +110,7 @@ class ExecutionRecord:
         if not frames:
             data.pop("frames")
             data.pop("source")
-        return _rounded(data)
-
-
-def _rounded(value: Any) -> Any:
-    """Floats to 9 significant digits: the file reads well and stays deterministic."""
-    if isinstance(value, float):
-        return float(f"{value:.9g}") if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {k: _rounded(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_rounded(v) for v in value]
-    return value
+        return json_safe(data, digits=9)
 
 
 def write_execution(record: ExecutionRecord, out_dir: str | Path) -> Path:
