@@ -4,10 +4,14 @@ one merged URDF (written to a content-hashed cache), reading ``<mimic>`` tags.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
+import sys
+import tempfile
 import warnings
 import xml.etree.ElementTree as ET
+from collections.abc import Iterator
 from pathlib import Path
 
 import coal
@@ -198,16 +202,46 @@ def _build(
     so that a file that is not URDF XML is one :class:`ConfigError` (see
     :func:`urdf_tree`)."""
     root = urdf_tree(urdf, where)
-    try:
-        model = pin.buildModelFromUrdf(str(urdf))
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            collision = pin.buildGeomFromUrdf(
-                model, str(urdf), pin.COLLISION, package_dirs=package_dirs
-            )
-    except (RuntimeError, ValueError) as error:
-        raise ConfigError(where, str(urdf), f"a loadable URDF ({error})") from None
+    with _native_stderr() as printed:
+        try:
+            model = pin.buildModelFromUrdf(str(urdf))
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                collision = pin.buildGeomFromUrdf(
+                    model, str(urdf), pin.COLLISION, package_dirs=package_dirs
+                )
+        except (RuntimeError, ValueError) as error:
+            failure: Exception | None = error
+        else:
+            failure = None
+    if failure is not None:
+        # urdfdom's reasons ("Error:   Joint [j] ... does not specify limits"), without
+        # their source-line trailers, in the one message.
+        reasons = [line.removeprefix("Error:").strip() for line in printed if "Error:" in line]
+        because = str(failure).strip() + (f" urdfdom: {'; '.join(reasons)}" if reasons else "")
+        raise ConfigError(where, str(urdf), f"a loadable URDF ({because})") from None
+    for line in printed:  # a loaded URDF's warnings are the user's to see
+        print(line, file=sys.stderr)
     return model, collision, root
+
+
+@contextlib.contextmanager
+def _native_stderr() -> Iterator[list[str]]:
+    """Collect what native code writes to file descriptor 2 meanwhile (urdfdom prints its
+    parse errors there, two lines each), as the lines of the list yielded once the block
+    ends, instead of letting it reach the terminal beside the library's own message."""
+    lines: list[str] = []
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile() as sink:
+        os.dup2(sink.fileno(), 2)
+        try:
+            yield lines
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            sink.seek(0)
+            lines.extend(sink.read().decode(errors="replace").splitlines())
 
 
 def _convex_hulls(geometry_model: pin.GeometryModel) -> None:

@@ -85,6 +85,19 @@ def test_broken_urdf_prints_no_urdfdom_lines(tmp_path, robot_with, text):
     assert_bad_input(result, "robot.toml: urdf", "bad.urdf")
 
 
+def test_invalid_urdf_is_one_line_with_urdfdom_reasons(tmp_path, robot_with):
+    """A URDF that is XML but not a valid URDF (a revolute joint without limits): urdfdom's
+    own lines on stderr are folded into the one error line, reasons kept."""
+    text = (
+        '<robot name="x"><link name="a"/><link name="b"/><joint name="j" type="revolute">'
+        '<parent link="a"/><child link="b"/></joint></robot>'
+    )
+    robot, _ = robot_with(PANDA_URDF, 'urdf = "{name}"', "bad.urdf", text)
+    result = run_cli("law", "--robot", str(robot), "--out", "law.png", cwd=tmp_path)
+    assert_bad_input(result, "robot.toml: urdf", "bad.urdf", "does not specify limits")
+    assert "at line" not in result.stderr  # urdfdom's source-line trailers are left out
+
+
 def test_law_refuses_an_unsupported_format(tmp_path):
     """``law --out x.txt`` names --out and the formats matplotlib can write."""
     result = run_cli("law", "--out", "x.txt", cwd=tmp_path)
