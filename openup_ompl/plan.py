@@ -17,6 +17,7 @@ from openup_ompl._model import frame_id
 from openup_ompl.exceptions import ConfigError, FrameNotFound
 from openup_ompl.hand_law import HandLaw
 from openup_ompl.scene import Problem, Shape
+from openup_ompl.urdf import urdf_model
 
 PLAN_FORMAT = "openup-plan/1"
 
@@ -196,10 +197,7 @@ def _key(table: dict[str, Any], key: str, where: str) -> Any:
 def _urdf_model(urdf: str, where: str = "robot.urdf") -> pin.Model:
     if not Path(urdf).is_file():
         raise ConfigError(where, urdf, "an existing URDF file")
-    try:
-        return pin.buildModelFromUrdf(urdf)
-    except (RuntimeError, ValueError) as error:
-        raise ConfigError(where, urdf, f"a loadable URDF ({error})") from None
+    return urdf_model(urdf, where)
 
 
 @dataclass(frozen=True, eq=False)

@@ -11,8 +11,9 @@ import sys
 import tempfile
 import warnings
 import xml.etree.ElementTree as ET
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import TypeVar
 
 import coal
 import pinocchio as pin
@@ -21,6 +22,8 @@ from openup_ompl._io import write_atomic
 from openup_ompl._model import frame_id
 from openup_ompl.exceptions import ConfigError
 from openup_ompl.robot_file import MimicSpec, MountSpec, RobotSpec
+
+T = TypeVar("T")
 
 
 def cache_dir() -> Path:
@@ -202,27 +205,48 @@ def _build(
     so that a file that is not URDF XML is one :class:`ConfigError` (see
     :func:`urdf_tree`)."""
     root = urdf_tree(urdf, where)
+
+    def build() -> tuple[pin.Model, pin.GeometryModel]:
+        model = pin.buildModelFromUrdf(str(urdf))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            collision = pin.buildGeomFromUrdf(
+                model, str(urdf), pin.COLLISION, package_dirs=package_dirs
+            )
+        return model, collision
+
+    model, collision = parsed_by_pinocchio(urdf, where, build)
+    return model, collision, root
+
+
+def urdf_model(urdf: str | Path, where: str) -> pin.Model:
+    """Pinocchio's kinematic model of the URDF file ``urdf``.
+
+    Raises:
+        ConfigError: Pinocchio cannot load it, with urdfdom's reasons (named at ``where``).
+    """
+    return parsed_by_pinocchio(urdf, where, lambda: pin.buildModelFromUrdf(str(urdf)))
+
+
+def parsed_by_pinocchio(urdf: str | Path, where: str, build: Callable[[], T]) -> T:
+    """``build()``, a Pinocchio parse of the URDF file ``urdf``, with urdfdom's lines kept
+    off the terminal: a file urdfdom refuses is one :class:`ConfigError` (named at
+    ``where``) that carries its reasons ("Joint [j] ... does not specify limits"), without
+    their source-line trailers; a loaded file's warnings still reach stderr."""
     with _native_stderr() as printed:
         try:
-            model = pin.buildModelFromUrdf(str(urdf))
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                collision = pin.buildGeomFromUrdf(
-                    model, str(urdf), pin.COLLISION, package_dirs=package_dirs
-                )
+            result = build()
         except (RuntimeError, ValueError) as error:
             failure: Exception | None = error
         else:
             failure = None
     if failure is not None:
-        # urdfdom's reasons ("Error:   Joint [j] ... does not specify limits"), without
-        # their source-line trailers, in the one message.
         reasons = [line.removeprefix("Error:").strip() for line in printed if "Error:" in line]
         because = str(failure).strip() + (f" urdfdom: {'; '.join(reasons)}" if reasons else "")
         raise ConfigError(where, str(urdf), f"a loadable URDF ({because})") from None
-    for line in printed:  # a loaded URDF's warnings are the user's to see
+    for line in printed:
         print(line, file=sys.stderr)
-    return model, collision, root
+    return result
 
 
 @contextlib.contextmanager

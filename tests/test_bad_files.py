@@ -201,6 +201,21 @@ def test_bad_plan_exits_2_with_one_line(plan_data, tmp_path, capsys, case, comma
     assert not (tmp_path / "out").exists()
 
 
+def test_plan_naming_an_invalid_urdf_is_one_line(plan_data, tmp_path, capfd):
+    """A plan whose URDF urdfdom refuses (a revolute joint without limits): one line, with
+    urdfdom's reason in it, and none of urdfdom's own lines on file descriptor 2."""
+    urdf = tmp_path / "bad.urdf"
+    urdf.write_text(
+        '<robot name="x"><link name="a"/><link name="b"/><joint name="j" type="revolute">'
+        '<parent link="a"/><child link="b"/></joint></robot>'
+    )
+    path = _write(tmp_path, plan_data, _set("robot", "urdf", value=str(urdf)))
+    assert main(["show", str(path), "--out", str(tmp_path / "out")]) == 2
+    lines = capfd.readouterr().err.splitlines()
+    assert len(lines) == 1, lines
+    assert "bad.json: robot.urdf" in lines[0] and "does not specify limits" in lines[0]
+
+
 def test_plan_contents_are_checked_by_the_rollout(plan_data):
     """A plan's contents given to the physics rollout get the same check."""
     from openup_ompl.physics import Rollout
