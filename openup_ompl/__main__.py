@@ -31,11 +31,18 @@ def _parsed(text: str, kind: type, ok: Callable[[float], bool], expected: str) -
 
 
 def _time_limit(text: str) -> float:
-    """A time limit [s] in ``(0, planning.TIME_LIMIT_MAX]``."""
-    from openup_ompl.planning import TIME_LIMIT_MAX
+    """A time limit [s], checked by ``planning.check_time_limit`` (``(0, TIME_LIMIT_MAX]``:
+    OMPL's clock overflows beyond it); else an argparse error saying what it expects."""
+    from openup_ompl.planning import check_time_limit
 
-    expected = f"a positive number of seconds <= {TIME_LIMIT_MAX:g}"
-    return float(_parsed(text, float, lambda v: 0 < v <= TIME_LIMIT_MAX, expected))
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan  # refused below with the same message
+    try:
+        return check_time_limit(value)
+    except ConfigError as error:
+        raise argparse.ArgumentTypeError(f"expected {error.expected}, got {text!r}") from None
 
 
 def _unit_float(text: str) -> float:
