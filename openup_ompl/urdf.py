@@ -233,16 +233,13 @@ def parsed_by_pinocchio(urdf: str | Path, where: str, build: Callable[[], T]) ->
     off the terminal: a file urdfdom refuses is one :class:`ConfigError` (named at
     ``where``) that carries its reasons ("Joint [j] ... does not specify limits"), without
     their source-line trailers; a loaded file's warnings still reach stderr."""
-    with _native_stderr() as printed:
-        try:
+    try:
+        with _native_stderr() as printed:
             result = build()
-        except (RuntimeError, ValueError) as error:
-            failure: Exception | None = error
-        else:
-            failure = None
-    if failure is not None:
+    except (RuntimeError, ValueError) as error:
+        # The block has ended: ``printed`` holds urdfdom's lines.
         reasons = [line.removeprefix("Error:").strip() for line in printed if "Error:" in line]
-        because = str(failure).strip() + (f" urdfdom: {'; '.join(reasons)}" if reasons else "")
+        because = str(error).strip() + (f" urdfdom: {'; '.join(reasons)}" if reasons else "")
         raise ConfigError(where, str(urdf), f"a loadable URDF ({because})") from None
     for line in printed:
         print(line, file=sys.stderr)
