@@ -13,14 +13,24 @@ from typing import Any
 from openup_ompl.exceptions import ConfigError
 
 
+def _umask() -> int:
+    """The process's file mode creation mask (read by setting it and setting it back)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 def write_atomic(path: str | Path, text: str) -> Path:
     """Write ``text`` to ``path`` through a temporary file in the same directory and
     ``os.replace``: the file is either absent, the old one, or complete; the temporary file
-    never survives a failure. Creates the parent directory. Returns ``path``."""
+    never survives a failure. The file gets the mode ``open`` would give a new one
+    (``0o666`` less the umask: shared plan files stay readable), not the temporary file's
+    ``0o600``. Creates the parent directory. Returns ``path``."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
+        os.fchmod(fd, 0o666 & ~_umask())
         with os.fdopen(fd, "w") as handle:
             handle.write(text)
             handle.flush()

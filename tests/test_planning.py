@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import stat
 from pathlib import Path
 
 import numpy as np
@@ -179,6 +181,21 @@ def test_start_at_goal_is_rejected(default_problem: oo.Problem, tmp_path: Path) 
     path = _scene(tmp_path, GRASP, f"pose = [{pose}]")
     with pytest.raises(oo.OpenUpError, match="start"):
         oo.GraspPlanningSetup(oo.load_scene(path))
+
+
+@pytest.mark.parametrize("umask", [0o022, 0o027])
+def test_plan_file_has_the_mode_of_a_new_file(
+    default_setup: oo.GraspPlanningSetup, tmp_path: Path, umask: int
+) -> None:
+    """A plan file is written through a temporary file (mode 0600) but ends with the mode
+    ``open`` gives a new file, so that a shared plan stays readable by others."""
+    plan = default_setup.solve(planner="ikbirrt", seed=5)
+    old = os.umask(umask)
+    try:
+        path = plan.save(tmp_path / "plan.json")
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE(path.stat().st_mode) == 0o666 & ~umask
 
 
 def test_plan_file_follows_contract(default_setup: oo.GraspPlanningSetup, tmp_path: Path) -> None:
