@@ -259,6 +259,10 @@ class GraspPlanningSetup:
         max_goal_samples: int | None = None,
         planner_range: float | None = None,
         pregrasp: float | None = None,
+        planner: str | None = None,
+        time_limit: float | None = None,
+        simplify: bool | None = None,
+        simplify_rounds: int | None = None,
     ) -> None:
         if options is None:
             options = PlanningOptions()
@@ -276,6 +280,10 @@ class GraspPlanningSetup:
             "max_goal_samples": max_goal_samples,
             "planner_range": planner_range,
             "pregrasp": pregrasp,
+            "planner": planner,
+            "time_limit": time_limit,
+            "simplify": simplify,
+            "simplify_rounds": simplify_rounds,
         }
         options = dataclasses.replace(
             options, **{k: v for k, v in changes.items() if v is not None}

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+import inspect
 import os
 import stat
 from pathlib import Path
@@ -298,12 +300,20 @@ def test_bad_retreat_options_are_named() -> None:
 
 def test_planning_options_equal_the_keyword_form(default_problem: oo.Problem) -> None:
     """GraspPlanningSetup(problem, PlanningOptions(...)) is the keyword form's setup."""
-    keywords = oo.GraspPlanningSetup(default_problem, u=0.5, fixed_hand="w", planner_range=0.3)
-    options = oo.PlanningOptions(u=0.5, fixed_hand="w", planner_range=0.3)
+    changes = {"u": 0.5, "fixed_hand": "w", "planner_range": 0.3, "simplify": True}
+    keywords = oo.GraspPlanningSetup(default_problem, **changes)
+    options = oo.PlanningOptions(**changes)
     frozen = oo.GraspPlanningSetup(default_problem, options)
     assert keywords.options == frozen.options == options
     assert keywords.law.to_dict() == frozen.law.to_dict()
     assert oo.GraspPlanningSetup(default_problem, 0.5).law.u == 0.5  # the old positional u
+
+
+def test_every_planning_option_is_a_keyword_of_the_setup() -> None:
+    """Each field of PlanningOptions can be given to GraspPlanningSetup as a keyword."""
+    keywords = inspect.signature(oo.GraspPlanningSetup.__init__).parameters
+    fields = [f.name for f in dataclasses.fields(oo.PlanningOptions)]
+    assert [name for name in fields if name not in keywords] == []
 
 
 @pytest.mark.parametrize(
