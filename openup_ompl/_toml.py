@@ -26,7 +26,7 @@ def read_toml(path: Path, what: str) -> dict[str, Any]:
             return tomllib.load(stream)
     except FileNotFoundError:
         raise ConfigError(what, str(path), "an existing TOML file") from None
-    except (OSError, tomllib.TOMLDecodeError) as error:
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as error:
         raise ConfigError(what, str(path), f"a readable TOML file ({error})") from None
 
 

@@ -98,6 +98,24 @@ def test_invalid_urdf_is_one_line_with_urdfdom_reasons(tmp_path, robot_with):
     assert "at line" not in result.stderr  # urdfdom's source-line trailers are left out
 
 
+@pytest.mark.parametrize(
+    ("args", "named"),
+    [
+        (["plan", "binary.toml"], "scene file"),
+        (["law", "--scene", "binary.toml"], "scene file"),
+        (["law", "--robot", "binary.toml"], "robot file"),
+        (["show", "binary.json"], "plan file"),
+    ],
+    ids=["plan", "law --scene", "law --robot", "show"],
+)
+def test_a_file_that_is_not_text_is_one_line(tmp_path, args, named):
+    """A scene, robot or plan file that is not UTF-8 text is refused like a malformed one,
+    not with a UnicodeDecodeError traceback."""
+    for name in ("binary.toml", "binary.json"):
+        (tmp_path / name).write_bytes(bytes(range(256)))
+    assert_bad_input(run_cli(*args, cwd=tmp_path), named, "binary.")
+
+
 def test_law_refuses_an_unsupported_format(tmp_path):
     """``law --out x.txt`` names --out and the formats matplotlib can write."""
     result = run_cli("law", "--out", "x.txt", cwd=tmp_path)

@@ -123,11 +123,11 @@ def is_execution(path: str | Path) -> bool:
     """Whether ``path`` is a JSON file of the execution format (a cheap look, for the
     command line to pick its reader)."""
     try:
-        with Path(path).open() as handle:
+        with Path(path).open("rb") as handle:
             head = handle.read(4096)
     except OSError:
         return False
-    return f'"format": "{EXECUTION_FORMAT}"' in head
+    return f'"format": "{EXECUTION_FORMAT}"'.encode() in head
 
 
 def read_execution(path: str | Path) -> dict[str, Any]:
