@@ -15,7 +15,14 @@ import pytest
 
 import openup_ompl as ou
 from openup_ompl.exceptions import ConfigError
-from openup_ompl.physics import PhysicsOptions, Rollout, build_world, execute_plan, read_execution
+from openup_ompl.physics import (
+    PhysicsOptions,
+    Rollout,
+    build_world,
+    execute_plan,
+    read_execution,
+    rollout,
+)
 from openup_ompl.physics.trajectory import time_path
 
 mujoco = pytest.importorskip("mujoco")
@@ -177,13 +184,24 @@ def test_bad_input_exits_2_with_one_line_naming_it(panda_plan, tmp_path, case):
 
 
 def test_bad_offset_and_options_raise_config_errors(panda_plan):
-    """A non-finite offset or a negative gain is a ConfigError naming it."""
+    """A non-finite offset, one beyond OFFSET_MAX or a negative gain is a ConfigError
+    naming it."""
     with pytest.raises(ConfigError, match="yaw"):
         execute_plan(panda_plan, (0.0, 0.0, math.inf))
+    with pytest.raises(ConfigError, match="dx"):
+        execute_plan(panda_plan, (1e10, 0.0, 0.0))
     with pytest.raises(ConfigError, match="arm_kp"):
         PhysicsOptions(arm_kp=-1.0)
     with pytest.raises(ConfigError, match="speed"):
         PhysicsOptions(speed=2.0)
+
+
+def test_a_state_mujoco_resets_gives_no_verdict(panda_plan, monkeypatch):
+    """An object placed where MuJoCo finds its position huge is reset by MuJoCo (which
+    once read "held"): the rollout raises SimulationDiverged instead of a verdict."""
+    monkeypatch.setattr(rollout, "check_offset", lambda offset: tuple(map(float, offset)))
+    with pytest.raises(ou.SimulationDiverged, match="huge or non-finite position"):
+        execute_plan(panda_plan, (1e10, 0.0, 0.0), frames=False)
 
 
 def test_timing_respects_the_velocity_limits():

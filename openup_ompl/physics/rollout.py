@@ -42,11 +42,27 @@ from openup_ompl.plan import PlanFile
 __all__ = ["Rollout", "check_offset", "closed_targets", "execute_plan", "lift_rows"]
 
 
+#: The largest object displacement [m] along x or y a rollout takes: beyond the reach of
+#: every shipped arm (MuJoCo resets a state with a huge position, and a run at
+#: ``dx = 1e10`` read "held" before this bound).
+OFFSET_MAX = 1.0
+
+
+#: MuJoCo's warnings (``mjtWarning`` names) that it reset an unstable state, and what
+#: each says.
+UNSTABLE = (
+    ("mjWARN_BADQPOS", "huge or non-finite position"),
+    ("mjWARN_BADQVEL", "huge or non-finite velocity"),
+    ("mjWARN_BADQACC", "bad acceleration"),
+)
+
+
 def check_offset(offset: Sequence[float]) -> tuple[float, float, float]:
     """``(dx, dy, yaw)`` as floats.
 
     Raises:
-        ConfigError: Not three finite numbers (metres, metres, radians).
+        ConfigError: Not three finite numbers (metres, metres, radians), or ``dx`` or
+            ``dy`` beyond :data:`OFFSET_MAX`.
     """
     values = tuple(float(x) for x in offset)
     if len(values) != 3:
@@ -54,6 +70,10 @@ def check_offset(offset: Sequence[float]) -> tuple[float, float, float]:
     for name, value in zip(("dx", "dy", "yaw"), values, strict=True):
         if not math.isfinite(value):
             raise ConfigError(f"object offset {name}", value, "a finite number")
+        if name != "yaw" and abs(value) > OFFSET_MAX:
+            raise ConfigError(
+                f"object offset {name}", value, f"a displacement within +-{OFFSET_MAX:g} m"
+            )
     return values  # type: ignore[return-value]
 
 
@@ -211,10 +231,28 @@ class Rollout:
         self, offset: Sequence[float] = (0.0, 0.0, 0.0), seed: int = 0, frames: bool = True
     ) -> ExecutionRecord:
         """Execute the plan with the object displaced by ``offset`` = ``(dx, dy, yaw)``
-        [m, m, rad]; ``frames`` keeps the sampled rollout for the viewer."""
+        [m, m, rad]; ``frames`` keeps the sampled rollout for the viewer.
+
+        MuJoCo's warnings are caught while it runs (not printed, no ``MUJOCO_LOG.TXT``):
+        those of a state it reset raise :class:`SimulationDiverged` with their text.
+        """
         import mujoco
 
         dx, dy, yaw = check_offset(offset)
+        messages: list[str] = []
+        previous = mujoco.get_mju_user_warning()
+        mujoco.set_mju_user_warning(messages.append)
+        try:
+            return self._run(dx, dy, yaw, seed, frames, messages)
+        finally:
+            mujoco.set_mju_user_warning(previous)
+
+    def _run(
+        self, dx: float, dy: float, yaw: float, seed: int, frames: bool, messages: list[str]
+    ) -> ExecutionRecord:
+        """:meth:`run` with its offset checked; ``messages`` collects MuJoCo's warnings."""
+        import mujoco
+
         options, world, model, sim = self.options, self.world, self.world.model, self.sim
         if options.object_jitter > 0:
             jitter = np.random.default_rng(seed).normal(0.0, options.object_jitter, 2)
@@ -316,10 +354,12 @@ class Rollout:
                 kept["phase"].append(state["phase"])
 
         def check_stable() -> None:
-            bad = sim.warning[mujoco.mjtWarning.mjWARN_BADQACC].number
-            if bad or not np.all(np.isfinite(sim.qpos)):
-                detail = "bad acceleration, state reset" if bad else "non-finite state"
-                raise SimulationDiverged(state["phase"], state["step"] * dt, detail)
+            for warning, what in UNSTABLE:
+                if sim.warning[getattr(mujoco.mjtWarning, warning)].number:
+                    detail = f"{what}, state reset" + "".join(f": {m}" for m in messages[-1:])
+                    raise SimulationDiverged(state["phase"], state["step"] * dt, detail)
+            if not np.all(np.isfinite(sim.qpos)):
+                raise SimulationDiverged(state["phase"], state["step"] * dt, "non-finite state")
 
         def run_for(seconds: float) -> None:
             for _ in range(round(seconds / dt)):
