@@ -204,6 +204,21 @@ def test_a_state_mujoco_resets_gives_no_verdict(panda_plan, monkeypatch):
         execute_plan(panda_plan, (1e10, 0.0, 0.0), frames=False)
 
 
+def test_a_path_of_two_rows_is_timed_from_rest_to_rest():
+    """Two rows (a plan of one straight motion) take about what a rest-to-rest motion
+    under the limits takes (they once took 1e12 s: the execution never ended)."""
+    rows = np.array([[0.0, 0.0], [0.4, -0.1]])
+    limits = np.array([1.0, 1.0])
+    timed = time_path(rows, limits, speed=0.5, acceleration=2.0)
+    # At least the time at the velocity limit, at most twice accelerating then braking
+    # over the whole distance.
+    assert 0.4 / 0.5 <= timed.duration <= 2.0 * (0.4 / 0.5 + 2.0 * math.sqrt(0.4 / 2.0))
+    times = np.linspace(0.0, timed.duration, 200)
+    q = np.array([timed.at(t) for t in times])
+    assert np.allclose(q[0], rows[0]) and np.allclose(q[-1], rows[-1])
+    assert np.all(np.abs(np.diff(q, axis=0)) / np.diff(times)[:, None] <= 0.5 * limits * 1.001)
+
+
 def test_timing_respects_the_velocity_limits():
     """The timed path never moves a joint faster than speed x its limit, starts and ends
     at the path's ends."""

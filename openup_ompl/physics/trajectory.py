@@ -73,6 +73,12 @@ def time_path(
     n = len(rows)
     if n < 2:
         return Timed(rows, np.zeros(n), np.zeros(n))
+    if n == 2:
+        # Speeds are set at the rows, and a path from rest to rest is at rest at both of
+        # its ends: one segment would never move (its time was 1e12 s). Its midpoint is
+        # where it moves fastest.
+        rows = np.array([rows[0], 0.5 * (rows[0] + rows[1]), rows[1]])
+        n = 3
     step = np.diff(rows, axis=0)  # (N-1, n): joint motion per unit s
     size = np.abs(step)
     tiny = 1e-12
