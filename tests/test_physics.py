@@ -196,6 +196,26 @@ def test_bad_offset_and_options_raise_config_errors(panda_plan):
         PhysicsOptions(speed=2.0)
 
 
+@pytest.mark.parametrize(
+    ("changes", "named"),
+    [
+        ({"hold": 1e9}, "hold"),
+        ({"hold": True}, "hold"),
+        ({"lift_height": 1e9}, "lift_height"),
+        ({"lift_speed": 1e-9}, "lift_speed"),
+        ({"object_jitter": 1e300}, "object_jitter"),
+        ({"speed": 1e-300}, "speed"),
+        ({"close_speed": 1e-9, "finger_close_speed": 1e-9}, "close_speed"),
+    ],
+)
+def test_options_that_would_run_for_hours_are_refused(panda_plan, changes, named):
+    """Every phase of a rollout is bounded (PHASE_MAX of simulated time): an option that
+    would make one longer is a ConfigError naming it, raised before any simulation (these
+    ran past a minute each)."""
+    with pytest.raises(ConfigError, match=named):
+        execute_plan(panda_plan, options=PhysicsOptions(**changes), frames=False)
+
+
 def test_a_state_mujoco_resets_gives_no_verdict(panda_plan, monkeypatch):
     """An object placed where MuJoCo finds its position huge is reset by MuJoCo (which
     once read "held"): the rollout raises SimulationDiverged instead of a verdict."""

@@ -7,7 +7,20 @@ from dataclasses import dataclass, fields
 
 from openup_ompl.exceptions import ConfigError
 
-__all__ = ["PhysicsOptions"]
+__all__ = ["PHASE_MAX", "PhysicsOptions"]
+
+#: The longest phase of a rollout [s of simulated time]: a bound on the settle, the
+#: squeeze, the lift, the hold, the reach and the closing (a longer one is a typo, and
+#: would run for hours).
+PHASE_MAX = 60.0
+#: Upper bounds of options whose size sets the work of a rollout: (name, bound, unit).
+LARGEST = (
+    ("settle", PHASE_MAX, "s"),
+    ("close_settle", PHASE_MAX, "s"),
+    ("hold", PHASE_MAX, "s"),
+    ("lift_height", 1.0, "m"),
+    ("object_jitter", 0.1, "m"),
+)
 
 
 @dataclass(frozen=True)
@@ -150,11 +163,22 @@ class PhysicsOptions:
             )
             if not (
                 isinstance(value, (int, float))
+                and not isinstance(value, bool)
                 and math.isfinite(value)
                 and (value >= 0 if zero_ok else value > 0)
             ):
                 expected = "a number >= 0" if zero_ok else "a positive number"
                 raise ConfigError(f"PhysicsOptions.{item.name}", value, expected)
+        for name, most, unit in LARGEST:
+            value = getattr(self, name)
+            if value > most:
+                raise ConfigError(f"PhysicsOptions.{name}", value, f"at most {most:g} {unit}")
+        if self.lift_height / self.lift_speed > PHASE_MAX:
+            raise ConfigError(
+                "PhysicsOptions.lift_speed",
+                self.lift_speed,
+                f"a lift of at most {PHASE_MAX:g} s (lift_height / lift_speed)",
+            )
         if self.speed > 1:
             raise ConfigError("PhysicsOptions.speed", self.speed, "a fraction in (0, 1]")
         if self.lifted_fraction > 1:

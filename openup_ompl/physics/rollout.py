@@ -33,7 +33,7 @@ import numpy as np
 
 from openup_ompl.exceptions import ConfigError, OpenUpError, SimulationDiverged
 from openup_ompl.grasp import closing_limits
-from openup_ompl.physics.options import PhysicsOptions
+from openup_ompl.physics.options import PHASE_MAX, PhysicsOptions
 from openup_ompl.physics.record import ExecutionRecord
 from openup_ompl.physics.trajectory import time_path
 from openup_ompl.physics.world import OBJECT, OBSTACLE, ROBOT, World, build_world
@@ -217,7 +217,21 @@ class Rollout:
         self.timed = time_path(
             self.path, self.world.velocity_limit, self.options.speed, self.options.acceleration
         )
+        if self.timed.duration > PHASE_MAX:
+            raise ConfigError(
+                "PhysicsOptions.speed and acceleration",
+                (self.options.speed, self.options.acceleration),
+                f"a reach of at most {PHASE_MAX:g} s (this plan's takes "
+                f"{self.timed.duration:.3g} s)",
+            )
         self.closed, self.closing_speed, self.closed_source = closed_targets(data, self.world)
+        close_time = self._close_time(self.path[-1][self.world.hand])
+        if close_time > PHASE_MAX:
+            raise ConfigError(
+                "PhysicsOptions.close_speed and finger_close_speed",
+                (self.options.close_speed, self.options.finger_close_speed),
+                f"a closing of at most {PHASE_MAX:g} s (this plan's takes {close_time:.3g} s)",
+            )
         self.lift = lift_rows(self.world, self.path[-1], self.options.lift_height)
         self.sim = mujoco.MjData(self.world.model)
         model = self.world.model
@@ -226,6 +240,20 @@ class Rollout:
         self.lead = -model.actuator_biasprm[self.world.actuator, 2] / gains
         self.goal = plan.grasp_pose[:3]
         self.start_distance = float(data["hand_law"].get("start_palm_distance") or 0.0)
+
+    def _close_rates(self) -> np.ndarray:
+        """Speed of each hand joint's target while the hand closes [rad/s or m/s]."""
+        options, world = self.options, self.world
+        speeds = np.where(
+            world.prismatic[world.hand], options.finger_close_speed, options.close_speed
+        )
+        return speeds * self.closing_speed  # type: ignore[no-any-return]
+
+    def _close_time(self, start: np.ndarray) -> float:
+        """Time [s] the hand's targets take from ``start`` to the closed configuration."""
+        if not self.world.hand.size:
+            return 0.0
+        return float(np.max(np.abs(self.closed - start) / self._close_rates()))
 
     def run(
         self, offset: Sequence[float] = (0.0, 0.0, 0.0), seed: int = 0, frames: bool = True
@@ -395,12 +423,9 @@ class Rollout:
 
         state["phase"] = "close"
         start = ctrl[hand].copy()
-        rates = (
-            np.where(world.prismatic[hand], options.finger_close_speed, options.close_speed)
-            * self.closing_speed
-        )
+        rates = self._close_rates()
         span = np.abs(self.closed - start)
-        close_time = float(np.max(span / rates)) if hand.size else 0.0
+        close_time = self._close_time(start)
         close_steps = math.ceil(close_time / dt) + round(options.close_settle / dt)
         direction = np.sign(self.closed - start)
         for k in range(close_steps):
