@@ -7,12 +7,13 @@ settings), ``world`` (the MuJoCo model of a plan), ``shapes`` (scene shapes as g
 ``trajectory`` (timing), ``rollout`` (control and verdict), ``record`` (the file).
 """
 
-from openup_ompl.physics.options import PhysicsOptions
+from openup_ompl.physics.options import PHASE_MAX, PhysicsOptions
 from openup_ompl.physics.record import ExecutionRecord, read_execution, write_execution
 from openup_ompl.physics.rollout import Rollout, execute_plan
 from openup_ompl.physics.world import World, build_world
 
 __all__ = [
+    "PHASE_MAX",
     "ExecutionRecord",
     "PhysicsOptions",
     "Rollout",
