@@ -40,14 +40,20 @@ from openup_ompl import _toml
 from openup_ompl._io import json_safe
 from openup_ompl._resources import data_dir
 from openup_ompl.exceptions import ConfigError, InvalidProblem, MissingExtra, OpenUpError
-from openup_ompl.executor import Task, load_records, run_tasks
-from openup_ompl.planning import GraspPlanningSetup, PlanningOptions, check_planner
+from openup_ompl.executor import Task, check_seeds, load_records, run_tasks
+from openup_ompl.planning import (
+    GraspPlanningSetup,
+    PlanningOptions,
+    check_planner,
+    check_time_limit,
+)
 from openup_ompl.scene import load_scene
 from openup_ompl.viz._mpl import _pyplot, _save
 
 __all__ = [
     "EXTRA_COLUMNS",
     "HANDS",
+    "MAX_RUNS",
     "PROBLEMS_ROOT",
     "BenchmarkResult",
     "benchmark_run",
@@ -64,6 +70,9 @@ __all__ = [
 
 #: Hand configurations: the law, and the classical fixed preshape (hand frozen at w).
 HANDS: tuple[str, ...] = ("law", "fixed")
+#: Most runs per problem, planner and hand accepted (each a process of up to the time
+#: limit): the bound of the robustness sweep's seeds.
+MAX_RUNS = 10_000
 #: Columns added to the database's ``runs`` table, with their SQL types.
 EXTRA_COLUMNS: dict[str, str] = {
     "run_key": "TEXT",
@@ -144,13 +153,12 @@ def make_tasks(
     configurations are compared on the same seeds.
 
     Raises:
-        ConfigError: Unknown planner or hand, ``runs`` below 1, or a bad time limit.
+        ConfigError: Unknown planner or hand, ``runs`` outside ``[1, MAX_RUNS]``, seeds
+            outside ``[0, 2^31)``, or a bad time limit.
     """
     names = _planner_names(planners)
-    if not (isinstance(runs, int) and runs >= 1):
-        raise ConfigError("runs", runs, "an integer >= 1")
-    if not (isinstance(time_limit, (int, float)) and 0 < time_limit < math.inf):
-        raise ConfigError("time", time_limit, "a positive number of seconds")
+    check_seeds(seed, runs, MAX_RUNS, "runs")
+    check_time_limit(time_limit, "time")
     for hand in hands:
         if hand not in HANDS:
             raise ConfigError("hand", hand, f"one of {list(HANDS)}")

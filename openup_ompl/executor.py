@@ -51,6 +51,29 @@ __all__ = [
 ]
 
 
+#: Seeds are below this (OMPL's and numpy's generators take them as 32-bit integers).
+SEED_LIMIT = 2**31
+
+
+def check_seeds(first: int, count: int, most: int, where: str) -> None:
+    """Refuse a run of seeds ``first, ..., first + count - 1`` (``where`` names ``count``)
+    that is empty, longer than ``most`` or reaches :data:`SEED_LIMIT`.
+
+    Raises:
+        ConfigError: Naming ``where``, ``seed`` or their sum.
+    """
+    if not (isinstance(count, int) and not isinstance(count, bool) and 1 <= count <= most):
+        raise ConfigError(where, count, f"an integer in [1, {most}]")
+    if not (isinstance(first, int) and not isinstance(first, bool) and 0 <= first < SEED_LIMIT):
+        raise ConfigError("seed", first, "an integer seed in [0, 2^31)")
+    if first + count - 1 >= SEED_LIMIT:
+        raise ConfigError(
+            f"seed + {where} - 1",
+            first + count - 1,
+            f"a last seed below 2^31 (seed {first} with {where} {count})",
+        )
+
+
 def seed_ompl(seed: int) -> None:
     """Seed OMPL's process-wide generator (before any OMPL object exists in the process).
 

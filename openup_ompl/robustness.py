@@ -42,7 +42,7 @@ import pinocchio as pin
 from openup_ompl._resources import data_dir
 from openup_ompl.collision import CollisionWorld
 from openup_ompl.exceptions import ConfigError, InvalidProblem, MissingExtra, PlanningFailed
-from openup_ompl.executor import Task, load_records, run_tasks
+from openup_ompl.executor import SEED_LIMIT, Task, check_seeds, load_records, run_tasks
 from openup_ompl.grasp import (
     GraspResult,
     HandCloser,
@@ -110,8 +110,6 @@ MAX_DELTA = 0.25
 #: Most plans per ``u`` accepted (``seeds``): 10 give the shipped tables, and every plan is
 #: a process of up to ``time_limit`` seconds.
 MAX_SEEDS = 10_000
-#: Seeds are below this (OMPL's and numpy's generators take them as 32-bit integers).
-SEED_LIMIT = 2**31
 
 
 def default_robustness_scene() -> Path:
@@ -201,25 +199,6 @@ class RobustnessOptions:
             planner=self.planner,
             time_limit=self.time_limit,
             simplify=True,
-        )
-
-
-def check_seeds(first: int, count: int, most: int, where: str) -> None:
-    """Refuse a run of seeds ``first, ..., first + count - 1`` (``where`` names ``count``)
-    that is empty, longer than ``most`` or reaches :data:`SEED_LIMIT`.
-
-    Raises:
-        ConfigError: Naming ``where``, ``seed`` or their sum.
-    """
-    if not (isinstance(count, int) and 1 <= count <= most):
-        raise ConfigError(where, count, f"an integer in [1, {most}]")
-    if not (isinstance(first, int) and 0 <= first < SEED_LIMIT):
-        raise ConfigError("seed", first, "an integer seed in [0, 2^31)")
-    if first + count - 1 >= SEED_LIMIT:
-        raise ConfigError(
-            f"seed + {where} - 1",
-            first + count - 1,
-            f"a last seed below 2^31 (seed {first} with {where} {count})",
         )
 
 

@@ -196,6 +196,11 @@ SEED_ARGS = {
         ["seed + trials - 1", "2147483999"],
     ),
     "negative --runs": (["benchmark", "--runs", "-3"], ["--runs", "'-3'"]),
+    "huge --runs": (["benchmark", "--runs", "99999999999"], ["runs", "99999999999"]),
+    "last benchmark seed past 2^31": (
+        ["benchmark", "--seed", "2147483647", "--runs", "2"],
+        ["seed + runs - 1", "2147483648"],
+    ),
 }
 
 
