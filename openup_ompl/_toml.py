@@ -26,7 +26,7 @@ def read_toml(path: Path, what: str) -> dict[str, Any]:
             return tomllib.load(stream)
     except FileNotFoundError:
         raise ConfigError(what, str(path), "an existing TOML file") from None
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as error:
+    except (OSError, UnicodeDecodeError, RecursionError, tomllib.TOMLDecodeError) as error:
         raise ConfigError(what, str(path), f"a readable TOML file ({error})") from None
 
 
@@ -61,9 +61,16 @@ def string(value: Any, where: str) -> str:
     return value
 
 
+def is_number(value: Any) -> bool:
+    """Whether ``value`` is a real number, Python's or numpy's (a bool is not)."""
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
+        value, (bool, np.bool_)
+    )
+
+
 def number(value: Any, where: str, *, low: float | None = None, high: float | None = None) -> float:
     """A finite float, optionally within ``[low, high]``."""
-    ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+    ok = is_number(value)
     if ok:
         value = float(value)
         ok = (

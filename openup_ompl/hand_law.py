@@ -84,6 +84,14 @@ def _check_distance(d: float) -> float:
     return d
 
 
+def _check_flags(**flags: object) -> None:
+    """Each of ``flags`` is ``True`` or ``False`` (a string such as ``"no"`` would count as
+    true), else :class:`ConfigError` naming it."""
+    for name, value in flags.items():
+        if not isinstance(value, (bool, np.bool_)):
+            raise ConfigError(name, value, "true or false")
+
+
 def open_hand(
     d: float,
     c: Sequence[float] | np.ndarray,
@@ -135,6 +143,7 @@ def open_hand(
             not finite, ``c``, ``b``, ``w`` not finite or of different lengths.
     """
     u = _check_unit("u", u)
+    _check_flags(continuous=continuous, open_arrival=open_arrival)
     # Any mga in (0, 1] is a law; planning needs mga >= MGA_MIN (HandLaw checks that).
     mga = _check_unit("mga", mga, low_open=True)
     d = _check_distance(d)
@@ -252,6 +261,7 @@ class HandLaw:
             value.flags.writeable = False
             object.__setattr__(self, name, value)
         object.__setattr__(self, "u", _check_unit("hand.u", self.u))
+        _check_flags(**{"hand.continuous": self.continuous, "hand.open_arrival": self.open_arrival})
         object.__setattr__(self, "mga", _check_unit("hand.mga", self.mga, low=MGA_MIN))
         c, b, w = arrays["c"], arrays["b"], arrays["w"]
         lower, upper = arrays["lower"], arrays["upper"]

@@ -104,16 +104,10 @@ TIME_LIMIT_MAX = 1e6
 RESOLUTION_MAX = 0.1
 
 
-def _is_number(value: object) -> bool:
-    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
-        value, (bool, np.bool_)
-    )
-
-
 def check_time_limit(time_limit: float, where: str = "time_limit") -> float:
     """``time_limit`` [s] if it is a number in ``(0, TIME_LIMIT_MAX]``, else a
     :class:`ConfigError`."""
-    if not (_is_number(time_limit) and 0 < time_limit <= TIME_LIMIT_MAX):
+    if not (_toml.is_number(time_limit) and 0 < time_limit <= TIME_LIMIT_MAX):
         raise ConfigError(where, time_limit, f"a positive number of seconds <= {TIME_LIMIT_MAX:g}")
     return float(time_limit)
 
@@ -194,25 +188,26 @@ class PlanningOptions:
             value = getattr(self, name)
             if value is not None and not isinstance(value, bool):
                 raise ConfigError(name, value, "true or false")
-        if not (_is_number(self.resolution) and 0 < self.resolution <= RESOLUTION_MAX):
+        if not (_toml.is_number(self.resolution) and 0 < self.resolution <= RESOLUTION_MAX):
             raise ConfigError(
                 "resolution", self.resolution, f"a positive length <= {RESOLUTION_MAX:g} [m]"
             )
         if self.padding is not None and not (
-            _is_number(self.padding) and 0 <= self.padding < math.inf
+            _toml.is_number(self.padding) and 0 <= self.padding < math.inf
         ):
             raise ConfigError("padding", self.padding, "a length >= 0 [m]")
         check_planner(self.planner)
         check_time_limit(self.time_limit)
-        if not (isinstance(self.simplify_rounds, int) and self.simplify_rounds >= 0):
-            raise ConfigError("simplify_rounds", self.simplify_rounds, "an integer >= 0")
+        rounds = self.simplify_rounds
+        if not (isinstance(rounds, int) and not isinstance(rounds, bool) and 0 <= rounds <= 1000):
+            raise ConfigError("simplify_rounds", rounds, "an integer in [0, 1000]")
         if not (
             isinstance(self.max_goal_samples, int)
             and not isinstance(self.max_goal_samples, bool)
             and 1 <= self.max_goal_samples < 2**31
         ):
             raise ConfigError("max_goal_samples", self.max_goal_samples, "an integer in [1, 2^31)")
-        if not (_is_number(self.planner_range) and 0 < self.planner_range < math.inf):
+        if not (_toml.is_number(self.planner_range) and 0 < self.planner_range < math.inf):
             raise ConfigError("planner_range", self.planner_range, "a positive step [rad]")
         for name, kind in (("ik_options", IKOptions), ("ikbirrt_options", IKBiRRTOptions)):
             value = getattr(self, name)
@@ -402,15 +397,20 @@ class GraspPlanningSetup:
                 changes nothing). ``simplify`` and this default to the options'.
 
         Raises:
-            ConfigError: Bad time limit, seed or planner name.
+            ConfigError: Bad time limit, seed, planner name or simplification option.
             PlanningFailed: No exact solution in time (the message gives OMPL's status).
         """
         options = self.options
         time_limit = options.time_limit if time_limit is None else check_time_limit(time_limit)
         seed = check_seed(seed)
         planner = options.planner if planner is None else planner
-        simplify = options.simplify if simplify is None else simplify
-        rounds = options.simplify_rounds if simplify_rounds is None else simplify_rounds
+        if simplify is not None or simplify_rounds is not None:
+            # Checked as the options are.
+            changes: dict[str, Any] = {"simplify": simplify, "simplify_rounds": simplify_rounds}
+            options = dataclasses.replace(
+                options, **{k: v for k, v in changes.items() if v is not None}
+            )
+        simplify, rounds = options.simplify, options.simplify_rounds
         ss = self.simple_setup
         if isinstance(planner, ob.Planner):
             instance = planner

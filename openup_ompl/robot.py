@@ -220,7 +220,11 @@ class Robot:
                 continue
             size = np.size(value)  # type: ignore[arg-type]
             if size == self.n_driven:
-                changes[key] = self.expand_hand(np.asarray(value, dtype=float))
+                try:
+                    numbers = np.asarray(value, dtype=float)
+                except (TypeError, ValueError):
+                    raise ConfigError(f"{where}.{key}", value, "a list of numbers") from None
+                changes[key] = self.expand_hand(numbers)
             elif size != self.hand_idx.size:
                 raise ConfigError(
                     f"{where}.{key}", value, f"{self.n_driven} values, one per driven hand joint"

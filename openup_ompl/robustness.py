@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from openup_ompl import _toml
 from openup_ompl._resources import data_dir
 from openup_ompl.collision import CollisionWorld
 from openup_ompl.exceptions import ConfigError, InvalidProblem, MissingExtra, PlanningFailed
@@ -153,7 +154,12 @@ class RobustnessOptions:
 
     def __post_init__(self) -> None:
         def values(name: str, raw: Sequence[float], ok: Any, expected: str) -> tuple[float, ...]:
-            items = tuple(float(x) for x in raw)
+            try:
+                if isinstance(raw, (str, bytes)) or any(isinstance(x, bool) for x in raw):
+                    raise TypeError
+                items = tuple(float(x) for x in raw)
+            except (TypeError, ValueError):
+                raise ConfigError(name, raw, f"a list of numbers: {expected}") from None
             if not items:
                 raise ConfigError(name, list(raw), f"at least one value: {expected}")
             for x in items:
@@ -184,8 +190,11 @@ class RobustnessOptions:
         check_seeds(self.first_seed, self.seeds, MAX_SEEDS, "seeds")
         check_planner(self.planner)
         check_time_limit(self.time_limit, "time")
-        if not (math.isfinite(self.friction) and self.friction >= 0):
-            raise ConfigError("friction", self.friction, "a coefficient >= 0")
+        friction = self.friction
+        if not (_toml.is_number(friction) and math.isfinite(friction) and friction >= 0):
+            raise ConfigError("friction", friction, "a coefficient >= 0")
+        if not isinstance(self.open_arrival, bool):
+            raise ConfigError("open_arrival", self.open_arrival, "true or false")
         if self.execute not in EXECUTIONS:
             raise ConfigError("execute", self.execute, f"one of {list(EXECUTIONS)}")
         if self.torsion is not None:

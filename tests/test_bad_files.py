@@ -227,6 +227,15 @@ def test_plan_contents_are_checked_by_the_rollout(plan_data):
     assert caught.value.where == "plan path[0][0]"
 
 
+def test_deeply_nested_plan_file_is_a_config_error(tmp_path):
+    """JSON nested past Python's recursion limit is refused like malformed JSON (it was a
+    RecursionError)."""
+    path = tmp_path / "deep.json"
+    path.write_text("[" * 100_000 + "]" * 100_000)
+    with pytest.raises(ConfigError, match="deep.json"):
+        read_plan(path)
+
+
 def test_valid_plan_loads(plan_data, tmp_path):
     """The plan as written loads, through every reader, with its path as written."""
     path = _write(tmp_path, plan_data)

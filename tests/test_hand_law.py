@@ -136,6 +136,8 @@ def test_open_hand_accepts_mga_one():
         ({"mga": "x"}, "mga", "'x'"),
         ({"u": "0.3"}, "u", "'0.3'"),
         ({"u": True}, "u", "True"),
+        ({"continuous": "no"}, "continuous", "'no'"),  # a non-empty string is truthy
+        ({"open_arrival": "no"}, "open_arrival", "'no'"),
         ({"d": -0.1}, "d", "-0.1"),
         ({"d": math.nan}, "d", "nan"),
         ({"d": "abc"}, "d", "'abc'"),

@@ -328,12 +328,28 @@ def test_every_planning_option_is_a_keyword_of_the_setup() -> None:
         ({"max_goal_samples": 10**12}, "max_goal_samples"),  # OMPL's unsigned int
         ({"ik_options": "x"}, "ik_options"),
         ({"ikbirrt_options": "x"}, "ikbirrt_options"),
+        ({"simplify": "no"}, "simplify"),
+        ({"simplify_rounds": True}, "simplify_rounds"),
+        ({"simplify_rounds": 2.5}, "simplify_rounds"),
     ],
 )
 def test_bad_planning_options_are_named(changes: dict, named: str) -> None:
     """PlanningOptions validates each value once, naming it."""
     with pytest.raises(oo.ConfigError, match=named):
         oo.PlanningOptions(**changes)
+
+
+@pytest.mark.parametrize(
+    ("changes", "named"),
+    [({"simplify": "no"}, "simplify"), ({"simplify_rounds": "3"}, "simplify_rounds")],
+)
+def test_solve_checks_its_simplification_options(
+    default_setup: oo.GraspPlanningSetup, changes: dict, named: str
+) -> None:
+    """solve()'s own simplify and simplify_rounds are checked as the options are (the
+    string "no" simplified the path)."""
+    with pytest.raises(oo.ConfigError, match=named):
+        default_setup.solve(planner="ikbirrt", seed=5, **changes)
 
 
 def test_verify_has_its_own_error(default_setup: oo.GraspPlanningSetup) -> None:

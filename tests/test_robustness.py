@@ -139,6 +139,10 @@ def test_perturbations_and_displacement() -> None:
         ("seeds", 0, "seeds"),
         ("planner", "nope", "planner"),
         ("friction", -1.0, "friction"),
+        ("friction", "x", "friction"),
+        ("us", "abc", "u"),
+        ("us", 0.3, "u"),
+        ("open_arrival", "no", "open_arrival"),  # a non-empty string is truthy
     ],
 )
 def test_bad_options_raise_config_error(field: str, value: object, named: str) -> None:

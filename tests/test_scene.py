@@ -151,6 +151,8 @@ BAD_EDITS = {
     "unknown hand key": ("u = 0.3", "u = 0.3\nspread = 1.0", "hand.spread"),
     "open_arrival not a bool": ("u = 0.3", 'u = 0.3\nopen_arrival = "yes"', "hand.open_arrival"),
     "c of wrong length": ("c = [0.035, 0.035]", "c = [0.035]", "hand.c"),
+    "c of strings": ("c = [0.035, 0.035]", 'c = ["a", "b"]', "hand.c"),
+    "start nested 5000 deep": (CAN_START, "start = " + "[" * 5000 + "]" * 5000, "scene"),
     "typo at the top level": (CAN_START, CAN_START.replace("start", "strat"), "strat"),
     "typo in the object": ("radius = 0.03", "raduis = 0.03", "object.raduis"),
     "a box with a radius": (

@@ -75,20 +75,20 @@ class CameraOptions:
             if getattr(self, name) is not None:
                 positive[name] = getattr(self, name)
         for name, value in positive.items():
-            if not (_is_number(value) and math.isfinite(value) and value > 0):
+            if not (_toml.is_number(value) and math.isfinite(value) and value > 0):
                 raise ConfigError(f"camera.{name}", value, "a positive finite number")
         if not self.fov < 180:
             raise ConfigError("camera.fov", self.fov, "a field of view in (0, 180) deg")
         for name in ("cx", "cy", "azimuth"):
             value = getattr(self, name)
-            if value is not None and not (_is_number(value) and math.isfinite(value)):
+            if value is not None and not (_toml.is_number(value) and math.isfinite(value)):
                 raise ConfigError(f"camera.{name}", value, "a finite number")
-        if not (_is_number(self.elevation) and -90 < self.elevation < 90):
+        if not (_toml.is_number(self.elevation) and -90 < self.elevation < 90):
             raise ConfigError("camera.elevation", self.elevation, "an angle in (-90, 90) deg")
         for name in ("position", "target"):
             value = getattr(self, name)
             if value is not None and not (
-                len(value) == 3 and all(_is_number(x) and math.isfinite(x) for x in value)
+                len(value) == 3 and all(_toml.is_number(x) and math.isfinite(x) for x in value)
             ):
                 raise ConfigError(f"camera.{name}", value, "[x, y, z], finite, in metres")
 
@@ -143,10 +143,6 @@ class CameraOptions:
         if np.linalg.norm(target - position) < 1e-6:
             raise ConfigError("camera.position", position.tolist(), "a point away from the target")
         return position, target
-
-
-def _is_number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
 def camera_rotation(position: np.ndarray, target: np.ndarray) -> np.ndarray:
