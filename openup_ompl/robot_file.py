@@ -203,6 +203,8 @@ class RobotSpec:
             "hand_joints", "home", "convex", "padding", "hand", "mount", "mimic",
         }  # fmt: skip
         _toml.check_keys(raw, known, f"{where}: ")
+        hand_keys = {"c", "b", "w", "mga", "u", "closed", "closing_speed", "torsion"}
+        _toml.check_keys(table, hand_keys, f"{where}: hand")
         srdf = raw.get("srdf")
         convex = raw.get("convex", True)
         if not isinstance(convex, bool):

@@ -163,6 +163,14 @@ def test_c_of_wrong_length_raises_config_error_naming_hand_c(panda_toml, write_f
     assert "bad.toml" in str(info.value)
 
 
+def test_unknown_hand_key_names_the_nearest_valid_one(panda_toml, write_file):
+    """A typo in the robot file's [hand] table is refused like one in a scene's (it was
+    ignored: `torsoin = 0.002` left the torsion at 0)."""
+    text = panda_toml.replace("torsion = 0.002", "torsoin = 0.002")
+    with pytest.raises(ou.ConfigError, match=r"hand\.torsoin.*did you mean 'torsion'"):
+        ou.load_robot(write_file("typo.toml", text))
+
+
 def test_unknown_palm_frame_raises_frame_not_found(panda_toml, write_file):
     """A palm frame the URDF lacks raises FrameNotFound naming it."""
     text = panda_toml.replace('palm_frame = "panda_hand"', 'palm_frame = "panda_palm"')
