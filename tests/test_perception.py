@@ -161,6 +161,22 @@ def test_camera_looking_away_sees_no_object(lwa3_can: ou.Problem) -> None:
         perceive(lwa3_can, options)
 
 
+@pytest.mark.parametrize(
+    ("options", "named"),
+    [
+        (CameraOptions(distance=0.01), "camera.distance"),
+        (CameraOptions(position=(0.75, -0.2, 0.1)), "camera.position"),
+    ],
+)
+def test_camera_inside_the_object_is_refused(
+    lwa3_can: ou.Problem, options: CameraOptions, named: str
+) -> None:
+    """A camera within the object's bounding sphere is a ConfigError naming its place (it
+    saw the object from within: a 130 mm error reported as a fit)."""
+    with pytest.raises(ConfigError, match=named):
+        perceive(lwa3_can, options)
+
+
 def test_too_few_points(lwa3_can: ou.Problem) -> None:
     """A tiny image, or a handful of points, raises TooFewPoints with the count."""
     with pytest.raises(TooFewPoints) as error:

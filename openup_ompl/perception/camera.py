@@ -142,6 +142,24 @@ class CameraOptions:
             position = target + self.distance * direction
         if np.linalg.norm(target - position) < 1e-6:
             raise ConfigError("camera.position", position.tolist(), "a point away from the target")
+        if problem.object is not None:
+            # A camera inside the object sees it from within (a wrong fit, reported as a
+            # good one): it must stand outside the object's bounding sphere.
+            geometry = problem.object.geometry()
+            geometry.computeLocalAABB()
+            centre = problem.object.placement.act(np.asarray(geometry.aabb_center))
+            radius = float(geometry.aabb_radius)
+            if np.linalg.norm(position - centre) <= radius:
+                where, value = (
+                    ("camera.position", position.tolist())
+                    if self.position is not None
+                    else ("camera.distance", self.distance)
+                )
+                raise ConfigError(
+                    where,
+                    value,
+                    f"a camera outside the object (farther than {radius:.3g} m from its centre)",
+                )
         return position, target
 
 
