@@ -23,6 +23,7 @@ from openup_ompl.perception import (
     kinect_sigmas,
     noisy_cloud,
     perceive,
+    u_from_covariance,
 )
 from openup_ompl.perception._toml_writer import dumps
 from openup_ompl.perception.figure import ELLIPSE_CHI2
@@ -184,6 +185,37 @@ def test_too_few_points(lwa3_can: ou.Problem) -> None:
     assert error.value.points < error.value.needed
     with pytest.raises(TooFewPoints):
         fit_superquadric(np.zeros((5, 3)))
+
+
+@pytest.mark.parametrize(
+    "points",
+    [np.zeros((50, 3)), np.outer(np.linspace(0.0, 0.1, 50), [1.0, 0.5, 0.0])],
+    ids=["one place", "a line"],
+)
+def test_degenerate_cloud_is_refused(points: np.ndarray) -> None:
+    """Points at one place or on a line fit perfectly, with a zero covariance (u = 0 from
+    no information): refused, naming the points."""
+    with pytest.raises(ConfigError, match="points"):
+        fit_superquadric(points)
+
+
+@pytest.mark.parametrize(
+    "covariance",
+    [
+        -np.eye(3),
+        np.full((3, 3), np.nan),
+        np.eye(2),
+        np.array([[1.0, 0.5, 0], [0, 1, 0], [0, 0, 1]]),
+    ],
+    ids=["negative", "nan", "2 x 2", "asymmetric"],
+)
+def test_u_from_a_covariance_that_is_not_one_is_refused(
+    lwa3_can: ou.Problem, covariance: np.ndarray
+) -> None:
+    """A position covariance that is not a 3 x 3 positive semi-definite matrix is a
+    ConfigError (a negative one gave u = 0)."""
+    with pytest.raises(ConfigError, match="position_covariance"):
+        u_from_covariance(covariance, np.eye(3) * 1e-4, lwa3_can)
 
 
 @pytest.mark.parametrize("key", ["fx", "fy", "cx", "fov"])

@@ -64,6 +64,24 @@ def clearance_per_u(problem: Problem) -> float:
     return float(max(np.max(growth) / 2, 0.0)) if growth.size else 0.0
 
 
+def _covariance_matrix(name: str, value: np.ndarray) -> np.ndarray:
+    """``value`` as a 3 x 3 covariance: finite, symmetric, positive semi-definite (to a
+    rounding tolerance), else :class:`ConfigError` naming ``name``."""
+    try:
+        matrix = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        matrix = np.full((1, 1), np.nan)
+    ok = matrix.shape == (3, 3) and bool(np.all(np.isfinite(matrix)))
+    if ok:
+        scale = max(float(np.abs(matrix).max()), 1e-300)
+        ok = bool(np.allclose(matrix, matrix.T, rtol=0, atol=1e-9 * scale))
+        ok = ok and float(np.linalg.eigvalsh(0.5 * (matrix + matrix.T)).min()) >= -1e-9 * scale
+    if not ok:
+        shown = matrix.tolist() if matrix.size <= 9 else f"an array of shape {matrix.shape}"
+        raise ConfigError(name, shown, "a finite, symmetric, positive semi-definite 3 x 3 matrix")
+    return matrix
+
+
 def lateral_sigma(
     position_covariance: np.ndarray,
     rotation_covariance: np.ndarray,
@@ -81,6 +99,8 @@ def lateral_sigma(
     shape = problem.object
     if shape is None:
         raise ConfigError("scene: object", None, "an [object] whose pose was estimated")
+    position_covariance = _covariance_matrix("position_covariance", position_covariance)
+    rotation_covariance = _covariance_matrix("rotation_covariance", rotation_covariance)
     grasp = pin.XYZQUATToSE3(problem.grasp_pose)
     approach = grasp.rotation @ np.asarray(problem.robot.spec.approach, dtype=float)
     removed = [approach / np.linalg.norm(approach)]
