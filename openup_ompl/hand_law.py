@@ -54,6 +54,9 @@ def palm_distance(
     return dist
 
 
+#: How far [rad or m] a referential hand configuration may lie beyond a joint limit
+#: (rounding in a robot or scene file); it is then clipped to the limit.
+REFERENCE_TOLERANCE = 1e-6
 #: The smallest ``mga`` accepted. Below it the hand would snap open within 1 % of the reach:
 #: the fingers' speed bound grows as ``1 / mga``, and with it the states a motion check
 #: places near the grasp (an LWA3 plan of ``scenes/lwa3_sdh_can.toml`` took 2.3 s at
@@ -82,14 +85,6 @@ def _check_distance(d: float) -> float:
     if not (math.isfinite(d) and d >= 0.0):
         raise ConfigError("d", d, "a finite normalised distance >= 0")
     return d
-
-
-def _check_flags(**flags: object) -> None:
-    """Each of ``flags`` is ``True`` or ``False`` (a string such as ``"no"`` would count as
-    true), else :class:`ConfigError` naming it."""
-    for name, value in flags.items():
-        if not isinstance(value, (bool, np.bool_)):
-            raise ConfigError(name, value, "true or false")
 
 
 def open_hand(
@@ -143,7 +138,9 @@ def open_hand(
             not finite, ``c``, ``b``, ``w`` not finite or of different lengths.
     """
     u = _check_unit("u", u)
-    _check_flags(continuous=continuous, open_arrival=open_arrival)
+    for name, flag in (("continuous", continuous), ("open_arrival", open_arrival)):
+        if not isinstance(flag, (bool, np.bool_)):  # the string "no" would count as true
+            raise ConfigError(name, flag, "true or false")
     # Any mga in (0, 1] is a law; planning needs mga >= MGA_MIN (HandLaw checks that).
     mga = _check_unit("mga", mga, low_open=True)
     d = _check_distance(d)
@@ -175,7 +172,9 @@ class HandLaw:
 
     The law is precomputed into an affine form so that the validity checker's hot path
     costs one multiply-add: ``hand = arrival + d * low_slope`` for ``d <= mga`` and
-    ``high`` above, then clipped to ``[lower, upper]``.
+    ``high`` above, then clipped to ``[lower, upper]``. ``c``, ``b``, ``w`` and ``fixed``
+    must lie within those limits (to :data:`REFERENCE_TOLERANCE`); the law between them
+    may leave them (Algorithm 3's jump at ``mga`` opens past ``w``), hence the clip.
 
     Attributes:
         c: Close preshape, hand-joint order.
@@ -252,6 +251,22 @@ class HandLaw:
             if fixed.shape != (n,) or not np.all(np.isfinite(fixed)):
                 raise ConfigError("hand.fixed", self.fixed, f"{n} finite values")
             object.__setattr__(self, "fixed", fixed)
+        lower, upper = arrays["lower"], arrays["upper"]
+        references = [(name, arrays[name]) for name in ("c", "b", "w")]
+        if self.fixed is not None:
+            references.append(("fixed", self.fixed))
+        for name, value in references:
+            outside = np.flatnonzero(
+                (value < lower - REFERENCE_TOLERANCE) | (value > upper + REFERENCE_TOLERANCE)
+            )
+            if outside.size:
+                k = int(outside[0])
+                raise ConfigError(
+                    f"hand.{name}",
+                    value.tolist(),
+                    f"values within the hand joints' limits (joint {k}: "
+                    f"[{lower[k]:.6g}, {upper[k]:.6g}])",
+                )
         if self.distance not in DISTANCE_KINDS:
             raise ConfigError("hand.distance", self.distance, f"one of {DISTANCE_KINDS}")
         if not (math.isfinite(self.rotation_weight) and self.rotation_weight >= 0):
@@ -261,10 +276,8 @@ class HandLaw:
             value.flags.writeable = False
             object.__setattr__(self, name, value)
         object.__setattr__(self, "u", _check_unit("hand.u", self.u))
-        _check_flags(**{"hand.continuous": self.continuous, "hand.open_arrival": self.open_arrival})
         object.__setattr__(self, "mga", _check_unit("hand.mga", self.mga, low=MGA_MIN))
         c, b, w = arrays["c"], arrays["b"], arrays["w"]
-        lower, upper = arrays["lower"], arrays["upper"]
         plateau = b + (w - b) * self.u
         if self.open_arrival:
             arrival = c + (w - c) * self.u

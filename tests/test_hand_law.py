@@ -158,23 +158,37 @@ def test_open_hand_rejects_bad_input_with_config_error(changes, where, shown):
 
 
 def test_hand_law_clips_to_the_joint_limits(panda):
-    """HandLaw clips the law to the hand joints' limits (w above the finger's upper limit)."""
-    law = panda.hand_law(w=[0.05, 0.05], u=1.0)
+    """HandLaw clips the law to the hand joints' limits: at u = 1 Algorithm 3's jump
+    opens the Panda to b + (w - c) = 0.055 m just below mga, past its 0.04 m limit."""
+    law = panda.hand_law(u=1.0)
     upper = panda.model.upperPositionLimit[panda.hand_idx]
     lower = panda.model.lowerPositionLimit[panda.hand_idx]
     np.testing.assert_allclose(upper, [0.04, 0.04])
-    for d in [0.0, 0.1, law.mga, 0.5, 1.0, 2.0]:
+    raw = ou.open_hand(law.mga, law.c, law.b, law.w, law.u, law.mga)
+    assert np.all(raw > upper)
+    for d in [0.0, 0.1, law.mga - EPS, law.mga, 0.5, 1.0, 2.0]:
         raw = ou.open_hand(d, law.c, law.b, law.w, law.u, law.mga)
         hand = law(d)
         np.testing.assert_allclose(hand, np.clip(raw, lower, upper), atol=1e-12)
         assert np.all(hand <= upper) and np.all(hand >= lower)
-    np.testing.assert_allclose(law(1.0), upper)  # the plateau w = 0.05 is cut to 0.04
+    np.testing.assert_allclose(law(law.mga), upper)
 
 
-def test_hand_law_clips_below_the_lower_limit(panda):
-    """A close preshape below the lower limit is clipped at d = 0."""
-    law = panda.hand_law(c=[-0.01, -0.01])
-    np.testing.assert_allclose(law(0.0), [0.0, 0.0])
+@pytest.mark.parametrize(
+    ("changes", "named"),
+    [
+        ({"c": [-0.01, -0.01]}, "hand.c"),
+        ({"w": [0.05, 0.05]}, "hand.w"),
+        ({"b": [1e300, 1e300]}, "hand.b"),  # crashed OMPL's setup with a traceback
+        ({"fixed": [0.03, 0.05]}, "hand.fixed"),
+    ],
+)
+def test_reference_beyond_a_joint_limit_is_refused(panda, changes, named):
+    """c, b, w or a fixed hand beyond a hand joint's limit is a ConfigError naming it and
+    the limit (it was clipped silently: a 0.5 m close preshape planned as 0.04)."""
+    with pytest.raises(ou.ConfigError, match=named) as info:
+        panda.hand_law(**changes)
+    assert "[0, 0.04]" in str(info.value)
 
 
 @pytest.mark.parametrize("variant", ["paper", "continuous", "open_arrival"])
@@ -189,11 +203,11 @@ def test_hand_law_equals_clipped_open_hand(panda, u, variant):
         np.testing.assert_allclose(law(d), expected, rtol=0, atol=1e-12)
 
 
-@pytest.mark.parametrize("w", [[0.04, 0.04], [0.05, 0.05]])
-def test_hand_law_batch_equals_per_distance_calls(panda, w):
-    """HandLaw.batch(ds) row i equals HandLaw(ds[i]), clipped or not; HandLaw.columns is
-    its transpose."""
-    law = panda.hand_law(u=0.7, w=w)
+@pytest.mark.parametrize("u", [0.3, 1.0])
+def test_hand_law_batch_equals_per_distance_calls(panda, u):
+    """HandLaw.batch(ds) row i equals HandLaw(ds[i]), clipped (u = 1) or not;
+    HandLaw.columns is its transpose."""
+    law = panda.hand_law(u=u)
     ds = np.array([0.0, 0.01, 0.1, law.mga - EPS, law.mga, law.mga + EPS, 0.5, 1.0, 3.0])
     rows = law.batch(ds)
     assert rows.shape == (ds.size, law.size)
@@ -203,10 +217,10 @@ def test_hand_law_batch_equals_per_distance_calls(panda, w):
 
 
 def test_hand_law_fixed_keeps_the_hand_constant(panda):
-    """With fixed= the hand stays at that configuration (clipped) whatever d."""
-    law = panda.hand_law(u=1.0, fixed=[0.03, 0.05])
+    """With fixed= the hand stays at that configuration whatever d."""
+    law = panda.hand_law(u=1.0, fixed=[0.03, 0.04])
     ds = np.array([0.0, 0.1, law.mga, 0.9, 2.0])
-    expected = [0.03, 0.04]  # the second finger's 0.05 is clipped to its upper limit
+    expected = [0.03, 0.04]
     for d in ds:
         np.testing.assert_allclose(law(d), expected)
     np.testing.assert_allclose(law.batch(ds), np.tile(expected, (ds.size, 1)))
