@@ -68,6 +68,11 @@ def is_number(value: Any) -> bool:
     )
 
 
+def is_integer(value: Any) -> bool:
+    """Whether ``value`` is an integer, Python's or numpy's (a bool is not)."""
+    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+
+
 def number(value: Any, where: str, *, low: float | None = None, high: float | None = None) -> float:
     """A finite float, optionally within ``[low, high]``."""
     ok = is_number(value)

@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
+from openup_ompl._toml import is_integer, is_number
 from openup_ompl.collision import ENVIRONMENT_PREFIX, _without_warm_start
 from openup_ompl.exceptions import ConfigError, InvalidProblem
 from openup_ompl.grasp_quality import (
@@ -79,11 +80,11 @@ class ClosingOptions:
     max_steps: int = 2000
 
     def __post_init__(self) -> None:
-        if not (np.isfinite(self.tolerance) and 1e-6 <= self.tolerance <= 0.01):
+        if not (is_number(self.tolerance) and 1e-6 <= self.tolerance <= 0.01):
             raise ConfigError("ClosingOptions.tolerance", self.tolerance, "1e-6 to 0.01 m")
-        if not (np.isfinite(self.min_step) and 0 < self.min_step <= 0.1):
+        if not (is_number(self.min_step) and 0 < self.min_step <= 0.1):
             raise ConfigError("ClosingOptions.min_step", self.min_step, "in (0, 0.1]")
-        if self.max_steps < 1:
+        if not (is_integer(self.max_steps) and self.max_steps >= 1):
             raise ConfigError("ClosingOptions.max_steps", self.max_steps, "at least 1")
 
 

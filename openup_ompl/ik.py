@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from openup_ompl._toml import is_integer, is_number
 from openup_ompl.exceptions import ConfigError
 from openup_ompl.robot import Robot
 
@@ -48,11 +49,11 @@ class IKOptions:
     def __post_init__(self) -> None:
         for name in ("max_iterations", "max_restarts", "stall_iterations"):
             value = getattr(self, name)
-            if not (isinstance(value, int) and value >= 1):
+            if not (is_integer(value) and value >= 1):
                 raise ConfigError(f"IKOptions.{name}", value, "an integer >= 1")
         for name in ("position_tolerance", "rotation_tolerance", "damping", "step", "stall_ratio"):
             value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0):
+            if not (is_number(value) and math.isfinite(value) and value > 0):
                 raise ConfigError(f"IKOptions.{name}", value, "a positive number")
 
 

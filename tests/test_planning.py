@@ -17,6 +17,9 @@ from recheck import assert_plan_rechecks, solved_and_rechecked
 import openup_ompl as oo
 from openup_ompl.benchmark import default_problems_dir
 from openup_ompl.goal import GOAL_THRESHOLD
+from openup_ompl.grasp import ClosingOptions
+from openup_ompl.perception.superquadric import FitOptions
+from openup_ompl.physics import PhysicsOptions
 
 SCENES = Path(__file__).resolve().parent / "scenes"
 SEEDS = range(20)
@@ -307,6 +310,29 @@ def test_planning_options_equal_the_keyword_form(default_problem: oo.Problem) ->
     assert keywords.options == frozen.options == options
     assert keywords.law.to_dict() == frozen.law.to_dict()
     assert oo.GraspPlanningSetup(default_problem, 0.5).law.u == 0.5  # the old positional u
+
+
+@pytest.mark.parametrize(
+    ("make", "named"),
+    [
+        (lambda: oo.IKOptions(damping="x"), "damping"),
+        (lambda: oo.IKOptions(max_iterations=True), "max_iterations"),
+        (lambda: oo.IKBiRRTOptions(max_step="x"), "max_step"),
+        (lambda: oo.IKBiRRTOptions(p_sample_goal="x"), "p_sample_goal"),
+        (lambda: ClosingOptions(tolerance="x"), "tolerance"),
+        (lambda: ClosingOptions(max_steps="x"), "max_steps"),
+        (lambda: PhysicsOptions(timestep="x"), "timestep"),
+        (lambda: PhysicsOptions(contact_solimp=None), "contact_solimp"),
+        (lambda: FitOptions(min_exponent="x"), "min_exponent"),
+        (lambda: FitOptions(trial_evaluations=0), "trial_evaluations"),
+        (lambda: FitOptions(starts=True), "starts"),
+    ],
+)
+def test_option_classes_refuse_values_of_the_wrong_type(make, named: str) -> None:
+    """A string, a bool or None where a number belongs is a ConfigError naming the field
+    (they were TypeErrors from math.isfinite or comparisons, or accepted: True as 1)."""
+    with pytest.raises(oo.ConfigError, match=named):
+        make()
 
 
 def test_every_planning_option_is_a_keyword_of_the_setup() -> None:

@@ -43,6 +43,7 @@ from typing import Any
 
 import numpy as np
 
+from openup_ompl._toml import is_integer, is_number
 from openup_ompl.exceptions import ConfigError, TooFewPoints
 
 __all__ = [
@@ -96,20 +97,28 @@ class FitOptions:
     covariance: str = "classic"
 
     def __post_init__(self) -> None:
-        if not 0.01 <= self.min_exponent < self.max_exponent <= 4.0:
+        if not (
+            is_number(self.min_exponent)
+            and is_number(self.max_exponent)
+            and 0.01 <= self.min_exponent < self.max_exponent <= 4.0
+        ):
             raise ConfigError(
                 "fit.min_exponent, max_exponent",
                 (self.min_exponent, self.max_exponent),
                 "0.01 <= min_exponent < max_exponent <= 4",
             )
-        if not 0 < self.min_size < self.max_size:
+        if not (is_number(self.min_size) and is_number(self.max_size)) or not (
+            0 < self.min_size < self.max_size
+        ):
             raise ConfigError(
                 "fit.min_size, max_size", (self.min_size, self.max_size), "0 < min < max [m]"
             )
-        if self.starts not in (1, 2, 3):
+        if not is_integer(self.starts) or self.starts not in (1, 2, 3):
             raise ConfigError("fit.starts", self.starts, "1, 2 or 3")
-        if self.max_evaluations < 10:
+        if not (is_integer(self.max_evaluations) and self.max_evaluations >= 10):
             raise ConfigError("fit.max_evaluations", self.max_evaluations, "at least 10")
+        if not (is_integer(self.trial_evaluations) and self.trial_evaluations >= 1):
+            raise ConfigError("fit.trial_evaluations", self.trial_evaluations, "at least 1")
         if self.covariance not in COVARIANCES:
             raise ConfigError("fit.covariance", self.covariance, f"one of {COVARIANCES}")
 

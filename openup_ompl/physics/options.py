@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
+from openup_ompl._toml import is_number
 from openup_ompl.exceptions import ConfigError
 
 __all__ = ["PHASE_MAX", "PhysicsOptions"]
@@ -125,10 +126,15 @@ class PhysicsOptions:
     frame_period: float = 0.02  # [s]
 
     def __post_init__(self) -> None:
+        for name in ("timestep", "contact_timeconst"):
+            value = getattr(self, name)
+            if not (is_number(value) and math.isfinite(value) and value > 0):
+                raise ConfigError(f"PhysicsOptions.{name}", value, "a positive number")
         solimp = self.contact_solimp
         if not (
-            len(solimp) == 5
-            and all(math.isfinite(x) for x in solimp)
+            isinstance(solimp, (tuple, list))
+            and len(solimp) == 5
+            and all(is_number(x) and math.isfinite(x) for x in solimp)
             and 0 < solimp[0] <= solimp[1] < 1
             and solimp[2] > 0
         ):
