@@ -444,12 +444,14 @@ def build_parser() -> argparse.ArgumentParser:
 def _closed_loop_command(args: argparse.Namespace) -> int:
     from openup_ompl.perception.cli import closed_loop_command
 
+    _dir_out(args.out)
     return closed_loop_command(args)
 
 
 def _perceive_command(args: argparse.Namespace) -> int:
     from openup_ompl.perception.cli import perceive_command
 
+    _dir_out(args.out)
     return perceive_command(args)
 
 
@@ -491,6 +493,8 @@ def _robustness_command(args: argparse.Namespace) -> int:
 def _execute_command(args: argparse.Namespace) -> int:
     from openup_ompl.physics import execute_plan, write_execution
 
+    if args.out is not None:
+        _dir_out(args.out)
     record = execute_plan(args.plan, args.object_offset, seed=args.seed)
     path = write_execution(record, args.out if args.out is not None else args.plan.parent)
     print(f"{record.verdict} (execution written to {path})")
@@ -587,6 +591,8 @@ def _print_shown(plan: Path, out: Path | None) -> None:
 def _show_command(args: argparse.Namespace) -> int:
     from openup_ompl.physics.record import is_execution
 
+    if args.out is not None:
+        _dir_out(args.out)
     if is_execution(args.plan):
         from openup_ompl.viz.rollout import show_execution
 

@@ -116,6 +116,23 @@ def test_a_file_that_is_not_text_is_one_line(tmp_path, args, named):
     assert_bad_input(run_cli(*args, cwd=tmp_path), named, "binary.")
 
 
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["execute", "plan.json"],
+        ["show", "plan.json"],
+        ["perceive", SCENE],
+        ["closed-loop", "--trials", "1"],
+    ],
+    ids=["execute", "show", "perceive", "closed-loop"],
+)
+def test_an_output_directory_that_is_a_file_is_refused_first(tmp_path, args):
+    """--out naming an existing file is refused before any work, naming --out (it was an
+    OSError after the rollout, the fit or the whole sweep)."""
+    (tmp_path / "afile").write_text("")
+    assert_bad_input(run_cli(*args, "--out", "afile", cwd=tmp_path), "--out", "afile")
+
+
 def test_law_refuses_an_unsupported_format(tmp_path):
     """``law --out x.txt`` names --out and the formats matplotlib can write."""
     result = run_cli("law", "--out", "x.txt", cwd=tmp_path)
