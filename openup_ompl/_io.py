@@ -49,6 +49,8 @@ def read_json(path: str | Path, fmt: str, what: str) -> dict[str, Any]:
     Raises:
         ConfigError: Unreadable, not JSON, or another format (naming the one found).
     """
+    if not isinstance(path, (str, os.PathLike)):
+        raise ConfigError(what, path, f"a path to a JSON {what}")
     path = Path(path)
     try:
         data = json.loads(path.read_text())

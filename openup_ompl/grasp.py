@@ -288,6 +288,8 @@ class HandCloser:
         q = np.array(q, dtype=float)
         if q.shape != (robot.model.nq,):
             raise ConfigError("close: q", q.shape, f"a full configuration of {robot.model.nq}")
+        if not np.all(np.isfinite(q)):
+            raise ConfigError("close: q", q.tolist(), "finite joint values")
         hand = q[robot.hand_idx[:n]].copy()
         target = np.where(np.isnan(self.closed), hand, self.closed)
         direction = np.sign(target - hand) * self._speed  # per unit of progress

@@ -253,8 +253,8 @@ class PlanFile:
             ConfigError: The file is not a readable ``openup-plan/1`` file, or what
                 :meth:`from_dict` raises, located at ``<file name>: <key>``.
         """
-        path = Path(path)
         data = read_json(path, PLAN_FORMAT, "plan file")
+        path = Path(path)
         return cls.from_dict(data, path.stem, where=f"{path.name}: ")
 
     @classmethod

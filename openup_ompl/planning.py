@@ -283,6 +283,8 @@ class GraspPlanningSetup:
         options = dataclasses.replace(
             options, **{k: v for k, v in changes.items() if v is not None}
         )
+        if not isinstance(problem, Problem):
+            raise ConfigError("problem", problem, "a Problem (load_scene(path))")
         self.options = options
         self.planner_range = float(options.planner_range)
         self.problem = problem

@@ -181,6 +181,8 @@ def load_scene(path: str | Path, robot: Robot | None = None) -> Problem:
     robot_file = find_robot_file(robot_name, relative_to=path.parent)
     if robot is None:
         robot = load_robot(robot_file)
+    elif not isinstance(robot, Robot):
+        raise ConfigError("robot", robot, "None or a loaded Robot (load_robot)")
     elif robot.spec.path != robot_file:
         raise ConfigError(f"{where}: robot", robot_name, f"the robot passed in ({robot.spec.path})")
     start = robot.spec.home

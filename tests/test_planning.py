@@ -18,8 +18,10 @@ import openup_ompl as oo
 from openup_ompl.benchmark import default_problems_dir
 from openup_ompl.goal import GOAL_THRESHOLD
 from openup_ompl.grasp import ClosingOptions
+from openup_ompl.perception.closed_loop import ClosedLoopOptions
 from openup_ompl.perception.superquadric import FitOptions
 from openup_ompl.physics import PhysicsOptions
+from openup_ompl.physics.rollout import check_offset
 
 SCENES = Path(__file__).resolve().parent / "scenes"
 SEEDS = range(20)
@@ -333,6 +335,34 @@ def test_option_classes_refuse_values_of_the_wrong_type(make, named: str) -> Non
     (they were TypeErrors from math.isfinite or comparisons, or accepted: True as 1)."""
     with pytest.raises(oo.ConfigError, match=named):
         make()
+
+
+@pytest.mark.parametrize(
+    ("call", "named"),
+    [
+        (lambda problem: oo.GraspPlanningSetup("scene.toml"), "problem"),
+        (lambda problem: oo.load_scene(problem.path, robot="panda"), "robot"),
+        (lambda problem: oo.read_plan(None), "plan file"),
+        (lambda problem: oo.close_hand(problem, np.full(problem.robot.model.nq, np.nan)), "q"),
+        (lambda problem: check_offset("abc"), "object offset"),
+        (lambda problem: ClosedLoopOptions(policies=()), "policies"),
+        (lambda problem: ClosedLoopOptions(planner="foo"), "planner"),
+    ],
+    ids=[
+        "setup of a str",
+        "scene robot a str",
+        "plan None",
+        "close NaN",
+        "offset str",
+        "no policy",
+        "closed-loop planner",
+    ],
+)
+def test_public_calls_refuse_wrong_arguments(default_problem: oo.Problem, call, named) -> None:
+    """Arguments of the wrong type or value are a ConfigError naming them (they were an
+    AttributeError, a TypeError, NaN contacts, an empty result or a late failure)."""
+    with pytest.raises(oo.ConfigError, match=named):
+        call(default_problem)
 
 
 def test_every_planning_option_is_a_keyword_of_the_setup() -> None:

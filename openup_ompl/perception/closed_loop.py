@@ -30,6 +30,7 @@ from openup_ompl.exceptions import ConfigError, InvalidProblem, PerceptionError,
 from openup_ompl.perception.camera import CameraOptions, DepthCamera
 from openup_ompl.perception.noise import NoiseOptions
 from openup_ompl.perception.perceive import at_estimate, perceive
+from openup_ompl.planning import check_planner, check_time_limit
 from openup_ompl.robustness import check_seeds, execute
 from openup_ompl.scene import Problem
 
@@ -93,11 +94,15 @@ class ClosedLoopOptions:
     camera: CameraOptions = dataclasses.field(default_factory=CameraOptions)
 
     def __post_init__(self) -> None:
+        for name in ("policies", "noises", "distances"):
+            value = getattr(self, name)
+            if isinstance(value, (str, bytes)) or not value:
+                raise ConfigError(name, value, "a non-empty list")
         for policy in self.policies:
             if policy != "covariance":
                 try:
                     value = float(policy)
-                except ValueError:
+                except (TypeError, ValueError):
                     value = math.nan
                 if not 0 <= value <= 1:
                     raise ConfigError("policy", policy, "a u in [0, 1] or 'covariance'")
@@ -106,6 +111,8 @@ class ClosedLoopOptions:
             NoiseOptions(scale=noise)
         for distance in self.distances:
             dataclasses.replace(self.camera, distance=distance)
+        check_planner(self.planner)
+        check_time_limit(self.time_limit, "time")
 
 
 def kinematic_judge(setup: GraspPlanningSetup, plan: Plan, truth: Problem) -> dict[str, Any]:
@@ -131,7 +138,8 @@ def closed_loop(
     from openup_ompl.planning import GraspPlanningSetup
 
     options = options or ClosedLoopOptions()
-    assert problem.object is not None
+    if problem.object is None:
+        raise ConfigError("scene: object", None, "an [object] to perceive and grasp")
     records = []
     for noise in options.noises:
         for distance in options.distances:

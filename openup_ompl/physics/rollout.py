@@ -64,7 +64,12 @@ def check_offset(offset: Sequence[float]) -> tuple[float, float, float]:
         ConfigError: Not three finite numbers (metres, metres, radians), or ``dx`` or
             ``dy`` beyond :data:`OFFSET_MAX`.
     """
-    values = tuple(float(x) for x in offset)
+    try:
+        if isinstance(offset, (str, bytes)):
+            raise TypeError
+        values = tuple(float(x) for x in offset)
+    except (TypeError, ValueError):
+        raise ConfigError("object offset", offset, "three numbers DX DY YAW [m, m, rad]") from None
     if len(values) != 3:
         raise ConfigError("object offset", list(offset), "three numbers DX DY YAW [m, m, rad]")
     for name, value in zip(("dx", "dy", "yaw"), values, strict=True):
