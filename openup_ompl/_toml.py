@@ -49,9 +49,13 @@ def check_keys(table: Mapping[str, Any], known: Iterable[str], where: str) -> No
 
 
 def require(table: Mapping[str, Any], key: str, where: str) -> Any:
-    """The value at ``key``, or a :class:`ConfigError` saying it is missing."""
+    """The value at ``key``, or a :class:`ConfigError` saying it is missing, located at
+    ``where.key`` (``file.toml: key`` when ``where`` is a file's name)."""
     if key not in table:
-        raise ConfigError(f"{where}.{key}", None, "a value (the key is missing)")
+        top = where.endswith((".toml", ".json"))
+        raise ConfigError(
+            f"{where}{': ' if top else '.'}{key}", None, "a value (the key is missing)"
+        )
     return table[key]
 
 

@@ -144,6 +144,7 @@ BAD_EDITS = {
     "negative size": ("size = [0.04, 0.4, 0.22]", "size = [0.04, -0.4, 0.22]", "obstacles[1].size"),
     "negative radius": ("radius = 0.03", "radius = -0.03", "object.radius"),
     "missing grasp": ("[grasp]", "[grab]", "grasp"),
+    "missing robot": ('robot = "panda"', "", "bad_scene.toml: robot"),
     "u above 1": ("u = 0.3", "u = 1.5", "hand.u"),
     "u below 0": ("u = 0.3", "u = -0.1", "hand.u"),
     "mga zero": ("mga = 0.25", "mga = 0.0", "hand.mga"),
