@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from openup_ompl._toml import unknown_key
+from openup_ompl._toml import is_number, unknown_key
 from openup_ompl.exceptions import ConfigError
 
 #: Names accepted for :attr:`HandLaw.distance`.
@@ -68,7 +68,7 @@ def _check_unit(name: str, value: float, *, low: float = 0.0, low_open: bool = F
     """``value`` as a float if it is a number in ``[low, 1]`` (``(low, 1]`` if
     ``low_open``), else :class:`ConfigError`."""
     expected = f"a number in {'(' if low_open else '['}{low:g}, 1]"
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.number)):
+    if not is_number(value):
         raise ConfigError(name, value, expected)
     value = float(value)
     above = low < value if low_open else low <= value
@@ -79,11 +79,9 @@ def _check_unit(name: str, value: float, *, low: float = 0.0, low_open: bool = F
 
 def _check_distance(d: float) -> float:
     """``d`` as a float if it is a finite normalised distance ``>= 0``."""
-    if isinstance(d, (bool, np.bool_)) or not isinstance(d, (int, float, np.number)):
+    if not (is_number(d) and math.isfinite(d) and d >= 0.0):
         raise ConfigError("d", d, "a finite normalised distance >= 0")
     d = float(d)
-    if not (math.isfinite(d) and d >= 0.0):
-        raise ConfigError("d", d, "a finite normalised distance >= 0")
     return d
 
 
@@ -420,6 +418,12 @@ class NormalizedDistance:
     ) -> None:
         if distance not in DISTANCE_KINDS:
             raise ConfigError("hand law distance", distance, f"one of {DISTANCE_KINDS}")
+        if not (
+            is_number(rotation_weight)
+            and math.isfinite(rotation_weight)
+            and rotation_weight >= 0
+        ):
+            raise ConfigError("rotation_weight", rotation_weight, "a number >= 0 [m/rad]")
         self._goal = grasp.translation.copy()
         self._goal_rot_t = grasp.rotation.T.copy() if distance == "weighted" else None
         self._rotation_weight = float(rotation_weight)

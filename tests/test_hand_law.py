@@ -294,3 +294,12 @@ def test_goal_distance_rejects_start_at_the_grasp():
     """A start whose palm is on the grasp pose cannot normalise d: ConfigError."""
     with pytest.raises(ou.ConfigError, match="start"):
         ou.GoalDistance(GRASP, GRASP)
+
+
+@pytest.mark.parametrize("weight", [-10.0, math.nan, "x"])
+def test_normalized_distance_names_a_bad_rotation_weight(weight):
+    """A negative, NaN or non-number rotation weight is named (a negative one blamed the
+    start, as if it were at the grasp)."""
+    start = pin.SE3(np.eye(3), np.array([0.5, 0.0, 0.5]))
+    with pytest.raises(ou.ConfigError, match="rotation_weight"):
+        ou.NormalizedDistance(pin.SE3.Identity(), start, "weighted", weight)
