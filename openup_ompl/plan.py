@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import json
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -101,6 +102,8 @@ class Plan:
 
     def save(self, path: str | Path) -> Path:
         """Write the plan file (JSON, README, Files: Plan), atomically; returns its path."""
+        if not isinstance(path, (str, os.PathLike)) or Path(path).is_dir():
+            raise ConfigError("plan file", path, "a path to a file to write")
         path = Path(path)
         if not np.all(np.isfinite(self.path)):
             raise ConfigError("plan path", "non-finite values", "a finite path")

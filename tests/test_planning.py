@@ -205,6 +205,15 @@ def test_plan_file_has_the_mode_of_a_new_file(
     assert stat.S_IMODE(path.stat().st_mode) == 0o666 & ~umask
 
 
+def test_plan_saved_onto_a_directory_is_refused(
+    default_setup: oo.GraspPlanningSetup, tmp_path: Path
+) -> None:
+    """Plan.save naming a directory is a ConfigError (it was an IsADirectoryError)."""
+    plan = default_setup.solve(planner="ikbirrt", seed=5)
+    with pytest.raises(oo.ConfigError, match="plan file"):
+        plan.save(tmp_path)
+
+
 def test_plan_file_follows_contract(default_setup: oo.GraspPlanningSetup, tmp_path: Path) -> None:
     """The plan file has the CONTRACT's keys, and read_plan accepts it."""
     plan = default_setup.solve(planner="ikbirrt", seed=5)
@@ -347,6 +356,7 @@ def test_option_classes_refuse_values_of_the_wrong_type(make, named: str) -> Non
         (lambda problem: check_offset("abc"), "object offset"),
         (lambda problem: ClosedLoopOptions(policies=()), "policies"),
         (lambda problem: ClosedLoopOptions(planner="foo"), "planner"),
+        (lambda problem: oo.force_closure(np.eye(3), np.eye(3), edges=10**9), "edges"),
     ],
     ids=[
         "setup of a str",
@@ -356,6 +366,7 @@ def test_option_classes_refuse_values_of_the_wrong_type(make, named: str) -> Non
         "offset str",
         "no policy",
         "closed-loop planner",
+        "cone edges",
     ],
 )
 def test_public_calls_refuse_wrong_arguments(default_problem: oo.Problem, call, named) -> None:
@@ -380,6 +391,7 @@ def test_every_planning_option_is_a_keyword_of_the_setup() -> None:
         ({"time_limit": 1e10}, "time_limit"),  # OMPL's clock overflows: an instant timeout
         ({"u": 2}, "u"),
         ({"resolution": 1e9}, "resolution"),
+        ({"resolution": 1e-12}, "resolution"),  # a motion check allocated 80 GiB
         ({"resolution": True}, "resolution"),
         ({"max_goal_samples": 10**12}, "max_goal_samples"),  # OMPL's unsigned int
         ({"ik_options": "x"}, "ik_options"),
