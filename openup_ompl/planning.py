@@ -429,7 +429,12 @@ class GraspPlanningSetup:
         else:
             instance = self.make_planner(planner, seed)
         self.reseed(seed)
-        ss.setPlanner(instance)
+        try:
+            ss.setPlanner(instance)
+        except RuntimeError as error:  # OMPL: "Planner instance does not match space ..."
+            raise ConfigError(
+                "planner", type(instance).__name__, f"a planner on space_information ({error})"
+            ) from None
         ss.clear()
         checks_before = self.checker.states_checked
         motions_before = self.checker.motions_checked

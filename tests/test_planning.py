@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
+from ompl import geometric as og
 from ompl import util as ompl_util
 from recheck import assert_plan_rechecks, solved_and_rechecked
 
@@ -203,6 +204,14 @@ def test_plan_file_has_the_mode_of_a_new_file(
     finally:
         os.umask(old)
     assert stat.S_IMODE(path.stat().st_mode) == 0o666 & ~umask
+
+
+def test_a_planner_of_another_setup_is_refused(default_problem: oo.Problem) -> None:
+    """An OMPL planner built on another setup's space information is a ConfigError naming
+    the planner (OMPL's RuntimeError before)."""
+    ours, other = (oo.GraspPlanningSetup(default_problem) for _ in range(2))
+    with pytest.raises(oo.ConfigError, match="RRTConnect"):
+        ours.solve(planner=og.RRTConnect(other.space_information), seed=1)
 
 
 def test_plan_saved_onto_a_directory_is_refused(
