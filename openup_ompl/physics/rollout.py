@@ -25,6 +25,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -266,8 +267,9 @@ class Rollout:
         """Execute the plan with the object displaced by ``offset`` = ``(dx, dy, yaw)``
         [m, m, rad]; ``frames`` keeps the sampled rollout for the viewer.
 
-        MuJoCo's warnings are caught while it runs (not printed, no ``MUJOCO_LOG.TXT``):
-        those of a state it reset raise :class:`SimulationDiverged` with their text.
+        MuJoCo's warnings are caught while it runs (no ``MUJOCO_LOG.TXT`` in the working
+        directory): those of a state it reset raise :class:`SimulationDiverged` with their
+        text; the others are printed on stderr after the run, one line each.
         """
         import mujoco
 
@@ -276,9 +278,12 @@ class Rollout:
         previous = mujoco.get_mju_user_warning()
         mujoco.set_mju_user_warning(messages.append)
         try:
-            return self._run(dx, dy, yaw, seed, frames, messages)
+            record = self._run(dx, dy, yaw, seed, frames, messages)
         finally:
             mujoco.set_mju_user_warning(previous)
+        for message in messages:
+            print(f"MuJoCo warning: {message}", file=sys.stderr)
+        return record
 
     def _run(
         self, dx: float, dy: float, yaw: float, seed: int, frames: bool, messages: list[str]
