@@ -37,6 +37,7 @@ from pathlib import Path
 from typing import Any
 
 from openup_ompl._io import write_atomic
+from openup_ompl._toml import is_integer
 from openup_ompl.exceptions import ConfigError, MissingExtra, SweepFailed
 
 __all__ = [
@@ -217,9 +218,9 @@ def run_tasks(
         SweepFailed: Some task failed on every attempt (the others' shards are kept).
     """
     _check_keys(tasks)
-    if workers is not None and workers < 1:
-        raise ConfigError("workers", workers, "at least 1")
-    if retries < 0:
+    if workers is not None and not (is_integer(workers) and workers >= 1):
+        raise ConfigError("workers", workers, "an integer >= 1")
+    if not (is_integer(retries) and retries >= 0):
         raise ConfigError("retries", retries, "0 or more")
     shards = Path(shards)
     shards.mkdir(parents=True, exist_ok=True)

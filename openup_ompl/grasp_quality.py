@@ -37,9 +37,20 @@ MAX_TORSION = 0.1
 MAX_EDGES = 64
 
 
+def _rows(value: object, where: str) -> np.ndarray:
+    """``value`` as ``(K, 3)`` floats, else :class:`ConfigError` naming ``where``."""
+    try:
+        array = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ConfigError(where, value, "rows of [x, y, z]") from None
+    if array.size % 3:
+        raise ConfigError(where, array.shape, "rows of [x, y, z]")
+    return array.reshape(-1, 3)
+
+
 def _as_contacts(points: object, normals: object, where: str) -> tuple[np.ndarray, np.ndarray]:
-    p = np.asarray(points, dtype=float).reshape(-1, 3)
-    n = np.asarray(normals, dtype=float).reshape(-1, 3)
+    p = _rows(points, f"{where}: points")
+    n = _rows(normals, f"{where}: normals")
     if p.shape != n.shape:
         raise ConfigError(f"{where}: normals", n.shape, f"one normal per point {p.shape}")
     if not (np.isfinite(p).all() and np.isfinite(n).all()):
@@ -181,7 +192,9 @@ def enclosed(normals: object, axis: Sequence[float] | np.ndarray | None = None) 
         axis: The object's long axis (:func:`object_axis`); ``None`` (a sphere) uses the
             normal of the plane the contact normals lie closest to.
     """
-    n = np.asarray(normals, dtype=float).reshape(-1, 3)
+    n = _rows(normals, "enclosed: normals")
+    if not np.isfinite(n).all():
+        raise ConfigError("enclosed: normals", "non-finite values", "finite normals")
     if n.shape[0] < 3:
         return False
     if axis is None:

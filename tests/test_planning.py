@@ -17,12 +17,15 @@ from recheck import assert_plan_rechecks, solved_and_rechecked
 
 import openup_ompl as oo
 from openup_ompl.benchmark import default_problems_dir
+from openup_ompl.executor import run_tasks
 from openup_ompl.goal import GOAL_THRESHOLD
 from openup_ompl.grasp import ClosingOptions
 from openup_ompl.perception.closed_loop import ClosedLoopOptions
 from openup_ompl.perception.superquadric import FitOptions
 from openup_ompl.physics import PhysicsOptions
 from openup_ompl.physics.rollout import check_offset
+from openup_ompl.validity import CoupledChecker
+from openup_ompl.viz.html import HtmlOptions
 
 SCENES = Path(__file__).resolve().parent / "scenes"
 SEEDS = range(20)
@@ -366,6 +369,11 @@ def test_option_classes_refuse_values_of_the_wrong_type(make, named: str) -> Non
         (lambda problem: ClosedLoopOptions(policies=()), "policies"),
         (lambda problem: ClosedLoopOptions(planner="foo"), "planner"),
         (lambda problem: oo.force_closure(np.eye(3), np.eye(3), edges=10**9), "edges"),
+        (lambda problem: oo.force_closure([[0, 0], [1, 1]], [[0, 0], [1, 1]]), "points"),
+        (lambda problem: oo.enclosed(np.full((3, 3), np.nan)), "normals"),
+        (lambda problem: HtmlOptions(fps="x"), "fps"),
+        (lambda problem: CoupledChecker(problem, resolution="x"), "resolution"),
+        (lambda problem: run_tasks([], "unused", workers="2"), "workers"),
     ],
     ids=[
         "setup of a str",
@@ -376,6 +384,11 @@ def test_option_classes_refuse_values_of_the_wrong_type(make, named: str) -> Non
         "no policy",
         "closed-loop planner",
         "cone edges",
+        "contacts of 2 values",
+        "NaN normals",
+        "html fps",
+        "checker resolution",
+        "workers a str",
     ],
 )
 def test_public_calls_refuse_wrong_arguments(default_problem: oo.Problem, call, named) -> None:

@@ -15,6 +15,7 @@ import base64
 import gzip
 import html
 import json
+import math
 import struct
 import warnings
 from dataclasses import dataclass
@@ -24,6 +25,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from openup_ompl._toml import is_number
 from openup_ompl.exceptions import ConfigError, MissingExtra
 from openup_ompl.viz._scene import PlanScene
 
@@ -50,9 +52,10 @@ class HtmlOptions:
 
     def __post_init__(self) -> None:
         for name in ("fps", "duration", "grasp_axes"):
-            if not getattr(self, name) > 0:
-                raise ConfigError(f"html {name}", getattr(self, name), "a positive number")
-        if not self.hold >= 0:
+            value = getattr(self, name)
+            if not (is_number(value) and math.isfinite(value) and value > 0):
+                raise ConfigError(f"html {name}", value, "a positive number")
+        if not (is_number(self.hold) and math.isfinite(self.hold) and self.hold >= 0):
             raise ConfigError("html hold", self.hold, "a duration >= 0 [s]")
 
 
