@@ -126,10 +126,6 @@ class PhysicsOptions:
     frame_period: float = 0.02  # [s]
 
     def __post_init__(self) -> None:
-        for name in ("timestep", "contact_timeconst"):
-            value = getattr(self, name)
-            if not (is_number(value) and math.isfinite(value) and value > 0):
-                raise ConfigError(f"PhysicsOptions.{name}", value, "a positive number")
         solimp = self.contact_solimp
         if not (
             isinstance(solimp, (tuple, list))
@@ -142,12 +138,6 @@ class PhysicsOptions:
                 "PhysicsOptions.contact_solimp",
                 solimp,
                 "(d0, dwidth, width, mid, power), 0 < d0 <= dwidth < 1",
-            )
-        if self.contact_timeconst < 2 * self.timestep:
-            raise ConfigError(
-                "PhysicsOptions.contact_timeconst",
-                self.contact_timeconst,
-                f"at least twice the timestep ({2 * self.timestep:g} s)",
             )
         for item in fields(self):
             if item.name == "contact_solimp":
@@ -175,6 +165,12 @@ class PhysicsOptions:
             ):
                 expected = "a number >= 0" if zero_ok else "a positive number"
                 raise ConfigError(f"PhysicsOptions.{item.name}", value, expected)
+        if self.contact_timeconst < 2 * self.timestep:
+            raise ConfigError(
+                "PhysicsOptions.contact_timeconst",
+                self.contact_timeconst,
+                f"at least twice the timestep ({2 * self.timestep:g} s)",
+            )
         for name, most, unit in LARGEST:
             value = getattr(self, name)
             if value > most:
