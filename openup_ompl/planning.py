@@ -223,6 +223,12 @@ class PlanningOptions:
                 raise ConfigError(name, value, f"None or an {kind.__name__}")
         _toml.number(self.pregrasp, "pregrasp", low=0.0)
 
+    def overridden(self, **changes: Any) -> PlanningOptions:
+        """These options with the fields of ``changes`` that are not ``None`` replaced
+        (checked again); ``self`` when there are none."""
+        given = {name: value for name, value in changes.items() if value is not None}
+        return dataclasses.replace(self, **given) if given else self
+
 
 class GraspPlanningSetup:
     """A reach-to-grasp problem on OMPL: state space, coupled checks, IK goal, planners.
@@ -288,9 +294,7 @@ class GraspPlanningSetup:
             "simplify": simplify,
             "simplify_rounds": simplify_rounds,
         }
-        options = dataclasses.replace(
-            options, **{k: v for k, v in changes.items() if v is not None}
-        )
+        options = options.overridden(**changes)
         if not isinstance(problem, Problem):
             raise ConfigError("problem", problem, "a Problem (load_scene(path))")
         self.options = options
@@ -414,12 +418,8 @@ class GraspPlanningSetup:
         time_limit = options.time_limit if time_limit is None else check_time_limit(time_limit)
         seed = check_seed(seed)
         planner = options.planner if planner is None else planner
-        if simplify is not None or simplify_rounds is not None:
-            # Checked as the options are.
-            changes: dict[str, Any] = {"simplify": simplify, "simplify_rounds": simplify_rounds}
-            options = dataclasses.replace(
-                options, **{k: v for k, v in changes.items() if v is not None}
-            )
+        # Checked as the options are.
+        options = options.overridden(simplify=simplify, simplify_rounds=simplify_rounds)
         simplify, rounds = options.simplify, options.simplify_rounds
         ss = self.simple_setup
         if isinstance(planner, ob.Planner):
