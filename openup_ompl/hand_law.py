@@ -85,6 +85,13 @@ def _check_distance(d: float) -> float:
     return d
 
 
+def _check_weight(name: str, value: float) -> float:
+    """``value`` as a float if it is a rotation weight, a finite number ``>= 0`` [m/rad]."""
+    if not (is_number(value) and math.isfinite(value) and value >= 0):
+        raise ConfigError(name, value, "a number >= 0 [m/rad]")
+    return float(value)
+
+
 def open_hand(
     d: float,
     c: Sequence[float] | np.ndarray,
@@ -267,9 +274,8 @@ class HandLaw:
                 )
         if self.distance not in DISTANCE_KINDS:
             raise ConfigError("hand.distance", self.distance, f"one of {DISTANCE_KINDS}")
-        if not (math.isfinite(self.rotation_weight) and self.rotation_weight >= 0):
-            raise ConfigError("hand.rotation_weight", self.rotation_weight, "a number >= 0 [m/rad]")
-        object.__setattr__(self, "rotation_weight", float(self.rotation_weight))
+        weight = _check_weight("hand.rotation_weight", self.rotation_weight)
+        object.__setattr__(self, "rotation_weight", weight)
         for name, value in arrays.items():
             value.flags.writeable = False
             object.__setattr__(self, name, value)
@@ -418,15 +424,9 @@ class NormalizedDistance:
     ) -> None:
         if distance not in DISTANCE_KINDS:
             raise ConfigError("hand law distance", distance, f"one of {DISTANCE_KINDS}")
-        if not (
-            is_number(rotation_weight)
-            and math.isfinite(rotation_weight)
-            and rotation_weight >= 0
-        ):
-            raise ConfigError("rotation_weight", rotation_weight, "a number >= 0 [m/rad]")
+        self._rotation_weight = _check_weight("rotation_weight", rotation_weight)
         self._goal = grasp.translation.copy()
         self._goal_rot_t = grasp.rotation.T.copy() if distance == "weighted" else None
-        self._rotation_weight = float(rotation_weight)
         self.start_distance = self.raw(start_placement)
         if self.start_distance <= 1e-9:
             raise ConfigError(
