@@ -80,6 +80,7 @@ def run_suites(
     recheck_every: int,
     fixed: list[str],
     options: oo.PlanningOptions | None = None,
+    first_seed: int = 1,
 ) -> tuple[list[dict[str, Any]], list[Any]]:
     """Every run's record, and the plans kept for the re-check (``options``: the setups'
     planning options, the fixed hand aside; ``None``: the package's defaults)."""
@@ -98,7 +99,7 @@ def run_suites(
     kept: list[Any] = []
     total = seeds * len(problems) * len(variants)
     started = time.perf_counter()
-    for seed in range(1, seeds + 1):
+    for done_seeds, seed in enumerate(range(first_seed, first_seed + seeds), start=1):
         for k, name in enumerate(problems):
             shift = (seed + k) % len(variants)
             for hand, planner in variants[shift:] + variants[:shift]:
@@ -126,9 +127,10 @@ def run_suites(
                 )
                 if plan is not None and len(runs) % recheck_every == 0:
                     kept.append(plan)
-        done = seed * len(problems) * len(variants)
+        done = done_seeds * len(problems) * len(variants)
         print(
-            f"  seed {seed}/{seeds}: {done}/{total} runs, {time.perf_counter() - started:.0f} s",
+            f"  seed {seed} ({done_seeds}/{seeds}): {done}/{total} runs, "
+            f"{time.perf_counter() - started:.0f} s",
             file=sys.stderr,
         )
     return runs, kept
@@ -289,6 +291,9 @@ def main() -> None:
     parser.add_argument("--robots", nargs="+", default=["panda", "lwa3_sdh", "ur5_allegro"])
     parser.add_argument("--planners", nargs="+", default=["ikbirrt", "rrtconnect"])
     parser.add_argument("--seeds", type=int, default=5, help="seeds per problem (default 5)")
+    parser.add_argument(
+        "--first-seed", type=int, default=1, help="seeds run from this one (default 1)"
+    )
     parser.add_argument("--time", type=float, default=5.0, help="seconds per solve (5)")
     parser.add_argument("--recheck-every", type=int, default=5, help="re-check every Nth plan")
     parser.add_argument("--cli-runs", type=int, default=3, help="fresh processes per robot")
@@ -309,8 +314,16 @@ def main() -> None:
     parser.add_argument("--continuous", action="store_true", help="the law without the jump at mga")
     parser.add_argument("--json", metavar="PATH", help="also write the results as JSON")
     args = parser.parse_args()
-    if args.seeds < 1 or args.time <= 0 or args.recheck_every < 1 or args.cli_runs < 0:
-        parser.error("--seeds, --recheck-every must be >= 1, --time > 0, --cli-runs >= 0")
+    if (
+        args.seeds < 1
+        or args.first_seed < 1
+        or args.time <= 0
+        or args.recheck_every < 1
+        or args.cli_runs < 0
+    ):
+        parser.error(
+            "--seeds, --first-seed, --recheck-every must be >= 1, --time > 0, --cli-runs >= 0"
+        )
     for robot in args.robots:
         if robot not in MEDIAN_TARGET_MS:
             parser.error(f"--robots: {robot!r} is not one of {sorted(MEDIAN_TARGET_MS)}")
@@ -327,7 +340,14 @@ def main() -> None:
     info = _common.machine_info()
 
     runs, kept = run_suites(
-        args.robots, args.planners, args.seeds, args.time, args.recheck_every, args.fixed, options
+        args.robots,
+        args.planners,
+        args.seeds,
+        args.time,
+        args.recheck_every,
+        args.fixed,
+        options,
+        args.first_seed,
     )
     summary = summarize(runs, args.robots, args.planners, args.fixed)
     checked, passed = _common.recheck_plans(kept)
@@ -341,7 +361,8 @@ def main() -> None:
     print(_common.machine_line(info))
     print()
     print(
-        f"Each robot's suite, {args.seeds} seeds per problem, {args.time:g} s limit; "
+        f"Each robot's suite, {args.seeds} seeds per problem (from {args.first_seed}), "
+        f"{args.time:g} s limit; "
         "median / p95 over all runs (failed = the limit); wall / solve: "
         "`GraspPlanningSetup.solve()` over its solve time, median of the runs."
     )

@@ -11,6 +11,12 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
+import pytest
+
+import openup_ompl as oo
+from openup_ompl.benchmark import default_problems_dir
+
 ROOT = Path(__file__).resolve().parent.parent
 
 
@@ -51,14 +57,54 @@ def test_bench_speed_compares_each_fixed_preshape(tmp_path: Path) -> None:
     out = tmp_path / "speed.json"
     done = _run(
         "bench_speed.py",
-        *("--robots", "panda", "--planners", "ikbirrt", "--seeds", "1", "--cli-runs", "0"),
-        *("--fixed", "w", "b", "--recheck-every", "4", "--json", str(out)),
+        *("--robots", "panda", "--planners", "ikbirrt", "--seeds", "1", "--first-seed", "2"),
+        *("--cli-runs", "0", "--fixed", "w", "b", "--recheck-every", "4", "--json", str(out)),
     )
     assert done.returncode == 0, done.stderr[-2000:]
     result = json.loads(out.read_text())
     assert {p["against"] for p in result["prices"]} == {"fixed w", "fixed b"}
     assert {c["hand"] for c in result["cells"]} == {"law", "fixed w", "fixed b"}
     assert all(run["solved"] for run in result["runs"])
+    assert {run["seed"] for run in result["runs"]} == {2}
     assert result["recheck"]["checked"] >= 1
     assert result["recheck"]["passed"] == result["recheck"]["checked"]
     assert re.search(r"\|\s*panda\s*\|\s*ikbirrt\s*\|\s*`b`\s*\|", done.stdout)
+
+
+def _law_shape() -> object:
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        import law_shape
+    finally:
+        sys.path.pop(0)
+    return law_shape
+
+
+@pytest.mark.parametrize(("robot", "longer"), [("lwa3_sdh", True), ("panda", False)])
+def test_law_shape_measures_how_far_the_fingers_reach_ahead(robot: str, longer: bool) -> None:
+    """The README's mechanism for the LWA3's larger search: its law's plateau points the
+    fingertips further ahead of the palm than `w` (by more than a centimetre), while the
+    Panda's fingers reach as far ahead with either hand, and wider with `w`."""
+    law_shape = _law_shape()
+    problem = oo.load_scene(default_problems_dir(robot) / "shelf_small.toml")
+    law = oo.GraspPlanningSetup(problem).law
+    home = np.asarray(problem.robot.spec.home, dtype=float)
+    plateau = law_shape.extents(problem.robot, home, np.asarray(law(1.0), dtype=float))
+    wide = law_shape.extents(problem.robot, home, np.asarray(law.w, dtype=float))
+    assert (plateau[0] - wide[0] > 0.01) is longer
+    assert wide[1] > plateau[1]
+
+
+def test_law_shape_follows_each_path_with_the_other_hand(tmp_path: Path) -> None:
+    """One seed of the Panda suite: a path per problem and hand, counted, and the figure."""
+    out = tmp_path / "shape.png"
+    done = _run("law_shape.py", "--robots", "panda", "--seeds", "1", "--out", str(out))
+    assert done.returncode == 0, done.stderr[-2000:]
+    counts = re.search(
+        r"panda: (\d+) of w's (\d+) paths .*?, (\d+) of the law's (\d+)", done.stdout
+    )
+    assert counts is not None, done.stdout[-2000:]
+    blocked_w, paths_w, blocked_law, paths_law = map(int, counts.groups())
+    assert paths_w == paths_law == 8
+    assert 0 <= blocked_w <= paths_w and 0 <= blocked_law <= paths_law
+    assert out.stat().st_size > 10_000
