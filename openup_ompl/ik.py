@@ -20,6 +20,12 @@ from openup_ompl._toml import is_integer, is_number
 from openup_ompl.exceptions import ConfigError
 from openup_ompl.robot import Robot
 
+#: The largest convergence thresholds IK accepts [m, rad]: a plan ends where IK put the
+#: palm, and a plan file whose last row is further from its grasp pose is refused
+#: (:class:`~openup_ompl.plan.PlanFile`).
+MAX_POSITION_TOLERANCE = 0.01
+MAX_ROTATION_TOLERANCE = 0.1
+
 
 @dataclass(frozen=True)
 class IKOptions:
@@ -27,8 +33,10 @@ class IKOptions:
 
     Attributes:
         max_iterations: Iterations per restart.
-        position_tolerance: Convergence threshold on the palm position error [m].
-        rotation_tolerance: Convergence threshold on the palm rotation error [rad].
+        position_tolerance: Convergence threshold on the palm position error [m], at most
+            :data:`MAX_POSITION_TOLERANCE`.
+        rotation_tolerance: Convergence threshold on the palm rotation error [rad], at
+            most :data:`MAX_ROTATION_TOLERANCE`.
         damping: Damping ``lambda`` of ``J J^T + lambda I`` [unitless].
         step: Fraction of the least-squares step taken per iteration.
         max_restarts: Random restarts tried by :meth:`IKSolver.solve` before giving up.
@@ -55,6 +63,14 @@ class IKOptions:
             value = getattr(self, name)
             if not (is_number(value) and math.isfinite(value) and value > 0):
                 raise ConfigError(f"IKOptions.{name}", value, "a positive number")
+        for name, limit, unit in (
+            ("position_tolerance", MAX_POSITION_TOLERANCE, "m"),
+            ("rotation_tolerance", MAX_ROTATION_TOLERANCE, "rad"),
+        ):
+            if getattr(self, name) > limit:
+                raise ConfigError(
+                    f"IKOptions.{name}", getattr(self, name), f"at most {limit:g} {unit}"
+                )
 
 
 class IKSolver:

@@ -17,6 +17,7 @@ from openup_ompl._io import read_json, write_atomic
 from openup_ompl._model import frame_id
 from openup_ompl.exceptions import ConfigError, FrameNotFound
 from openup_ompl.hand_law import HandLaw
+from openup_ompl.ik import MAX_POSITION_TOLERANCE, MAX_ROTATION_TOLERANCE
 from openup_ompl.scene import Problem, Shape
 from openup_ompl.urdf import urdf_model
 
@@ -138,6 +139,13 @@ def read_plan(path: str | Path) -> dict[str, Any]:
 #: lie within the limits; this only absorbs rounding).
 LIMIT_TOLERANCE = 1e-6
 
+#: How far [m] the palm may be from a plan's grasp pose at the path's last row: a plan
+#: ends where IK put the palm (within ``IKOptions.position_tolerance``, 1e-5 m by
+#: default; :class:`~openup_ompl.ik.IKOptions` refuses more than this).
+GRASP_POSITION_TOLERANCE = MAX_POSITION_TOLERANCE
+#: The same for the palm's rotation [rad].
+GRASP_ROTATION_TOLERANCE = MAX_ROTATION_TOLERANCE
+
 
 def number_rows(value: Any, where: str, width: int) -> np.ndarray:
     """``value`` (a non-empty list of rows of ``width`` finite numbers) as an
@@ -180,6 +188,38 @@ def _path(value: Any, where: str, model: pin.Model) -> np.ndarray:
             f"{columns[j]} within its limits [{low[j]:.6g}, {high[j]:.6g}]",
         )
     return path
+
+
+def _check_ends(
+    path: np.ndarray,
+    start: np.ndarray | None,
+    arm_idx: np.ndarray,
+    model: pin.Model,
+    palm_frame_id: int,
+    grasp_pose: np.ndarray,
+    where: str,
+) -> None:
+    """A plan's path must leave from its ``start`` (when the file names one) and end with
+    the palm at its grasp pose: a path edited, reversed or cut short would otherwise be
+    drawn and executed as the plan for that grasp."""
+    if start is not None and np.max(np.abs(path[0, arm_idx] - start)) > LIMIT_TOLERANCE:
+        raise ConfigError(
+            f"{where}path[0]",
+            np.round(path[0, arm_idx], 6).tolist(),
+            f"the arm at the plan's start {np.round(start, 6).tolist()}",
+        )
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, path[-1])
+    error = data.oMf[palm_frame_id].actInv(pin.XYZQUATToSE3(grasp_pose))
+    distance = float(np.linalg.norm(error.translation))
+    angle = float(np.linalg.norm(pin.log3(error.rotation)))
+    if distance > GRASP_POSITION_TOLERANCE or angle > GRASP_ROTATION_TOLERANCE:
+        raise ConfigError(
+            f"{where}path[{len(path) - 1}]",
+            f"the palm {distance * 1e3:.1f} mm and {angle:.3f} rad from grasp_pose",
+            f"the last row at the grasp pose (within {GRASP_POSITION_TOLERANCE * 1e3:g} mm "
+            f"and {GRASP_ROTATION_TOLERANCE:g} rad)",
+        )
 
 
 def _table(data: dict[str, Any], key: str, where: str, expected: str) -> dict[str, Any]:
@@ -275,7 +315,10 @@ class PlanFile:
             ConfigError: A key is missing or holds a bad value (a robot table naming
                 joints or a frame its URDF lacks, an unloadable URDF, a bad law, shape or
                 grasp pose, a path row of the wrong width, non-finite or beyond a joint
-                limit by more than :data:`LIMIT_TOLERANCE`), located at ``where + key``.
+                limit by more than :data:`LIMIT_TOLERANCE`, a path that does not leave
+                from ``start`` or does not end with the palm at ``grasp_pose``, within
+                :data:`GRASP_POSITION_TOLERANCE` and :data:`GRASP_ROTATION_TOLERANCE`),
+                located at ``where + key``.
         """
         if not isinstance(data, dict):
             raise ConfigError(where.rstrip(": .") or "plan", data, "a plan (a JSON object)")
@@ -336,8 +379,15 @@ class PlanFile:
             raise ConfigError(f"{where}seed", seed, "an integer or null")
         if "solve_time_s" in data:
             _toml.number(data["solve_time_s"], f"{where}solve_time_s", low=0.0)
+        start = None
         if "start" in data:
-            _toml.vector(data["start"], f"{where}start", len(groups["arm_joints"]))
+            start = _toml.vector(data["start"], f"{where}start", len(groups["arm_joints"]))
+        grasp_pose = _toml.pose(_key(data, "grasp_pose", where), f"{where}grasp_pose")
+        path = _path(_key(data, "path", where), f"{where}path", model)
+        arm_idx = np.array(
+            [model.joints[model.getJointId(n)].idx_q for n in groups["arm_joints"]], dtype=np.intp
+        )
+        _check_ends(path, start, arm_idx, model, palm_frame_id, grasp_pose, f"{where}")
         return cls(
             name=name,
             planner=data.get("planner", "plan"),
@@ -350,8 +400,8 @@ class PlanFile:
             hand_idx=hand_idx,
             palm_frame_id=palm_frame_id,
             law=law,
-            grasp_pose=_toml.pose(_key(data, "grasp_pose", where), f"{where}grasp_pose"),
-            path=_path(_key(data, "path", where), f"{where}path", model),
+            grasp_pose=grasp_pose,
+            path=path,
             obstacles=obstacles,
             object=None
             if raw_object is None

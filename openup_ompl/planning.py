@@ -192,8 +192,7 @@ class PlanningOptions:
             if value is not None and not isinstance(value, bool):
                 raise ConfigError(name, value, "true or false")
         if not (
-            _toml.is_number(self.resolution)
-            and RESOLUTION_MIN <= self.resolution <= RESOLUTION_MAX
+            _toml.is_number(self.resolution) and RESOLUTION_MIN <= self.resolution <= RESOLUTION_MAX
         ):
             raise ConfigError(
                 "resolution",

@@ -21,7 +21,7 @@ import pytest
 import openup_ompl as ou
 from openup_ompl.__main__ import main
 from openup_ompl.exceptions import ConfigError
-from openup_ompl.plan import LIMIT_TOLERANCE, PlanFile, read_plan
+from openup_ompl.plan import GRASP_POSITION_TOLERANCE, LIMIT_TOLERANCE, PlanFile, read_plan
 
 Mutation = Callable[[dict[str, Any]], None]
 
@@ -94,6 +94,10 @@ BAD_PLANS: dict[str, tuple[Mutation, str]] = {
     "grasp pose short": (_set("grasp_pose", value=[0.0] * 3), "grasp_pose"),
     "seed a string": (_set("seed", value="x"), "seed"),
     "start short": (_set("start", value=[0.0]), "start"),
+    # A path that does not leave from its start or does not end at its grasp pose.
+    "path reversed": (lambda data: data["path"].reverse(), "path[0]"),
+    "path cut short": (lambda data: data.__setitem__("path", data["path"][:3]), "path[2]"),
+    "start elsewhere": (_set("start", value=[0.0] * 7), "path[0]"),
 }
 
 #: Case -> (mutation of a valid execution file, the key its error names).
@@ -247,8 +251,27 @@ def test_valid_plan_loads(plan_data, tmp_path):
 def test_row_at_a_limit_within_the_tolerance_loads(plan_data, tmp_path):
     """A joint value beyond its limit by less than LIMIT_TOLERANCE is accepted (rounding)."""
     upper = float(PlanFile.read(_write(tmp_path, plan_data)).model.upperPositionLimit[0])
-    plan = PlanFile.read(_write(tmp_path, plan_data, _every_row(0, upper + LIMIT_TOLERANCE / 2)))
-    assert plan.path[0, 0] == upper + LIMIT_TOLERANCE / 2
+    beyond = upper + LIMIT_TOLERANCE / 2
+    plan = PlanFile.read(_write(tmp_path, plan_data, _set("path", 5, 0, value=beyond)))
+    assert plan.path[5, 0] == beyond
+
+
+@pytest.mark.parametrize(
+    ("shift", "refused"), [(0.5 * GRASP_POSITION_TOLERANCE, False), (0.05, True)]
+)
+def test_plan_must_end_at_its_grasp_pose(plan_data, tmp_path, shift, refused):
+    """A grasp pose moved away from the path's last row (by more than
+    GRASP_POSITION_TOLERANCE) is refused, naming the last row and the distance; within it,
+    the plan loads."""
+    data = copy.deepcopy(plan_data)
+    data["grasp_pose"][2] += shift
+    path = _write(tmp_path, data)
+    if not refused:
+        assert PlanFile.read(path).grasp_pose[2] == data["grasp_pose"][2]
+        return
+    last = len(data["path"]) - 1
+    with pytest.raises(ConfigError, match=rf"path\[{last}\]: got 'the palm 50.0 mm and 0.000 rad"):
+        PlanFile.read(path)
 
 
 @pytest.mark.parametrize("case", BAD_EXECUTIONS)

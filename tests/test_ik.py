@@ -43,7 +43,15 @@ def test_unreachable_target_stalls_early(panda):
 
 @pytest.mark.parametrize(
     "field, value",
-    [("max_iterations", 0), ("stall_iterations", 0), ("stall_ratio", 0.0), ("damping", -1.0)],
+    [
+        ("max_iterations", 0),
+        ("stall_iterations", 0),
+        ("stall_ratio", 0.0),
+        ("damping", -1.0),
+        # Looser than a plan file accepts at its last row (PlanFile's grasp check).
+        ("position_tolerance", 0.02),
+        ("rotation_tolerance", 0.2),
+    ],
 )
 def test_bad_options_are_named(field, value):
     """A bad IK option raises ConfigError naming the option."""
