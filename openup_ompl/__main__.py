@@ -12,6 +12,7 @@ import math
 import os
 import secrets
 import sys
+import tempfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -115,22 +116,51 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
+def _out_path(text: str) -> Path:
+    """An ``--out`` path: not empty (``Path("")`` would silently be the current
+    directory)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"expected a path, got {text!r}")
+    return Path(text)
+
+
+def _writable(path: Path, nearest: Path) -> None:
+    """Refuse ``path`` when its nearest existing directory ``nearest`` takes no new file
+    (tried with a temporary file, removed at once: permission bits say nothing to root or
+    of a read-only or virtual file system)."""
+    try:
+        with tempfile.TemporaryFile(dir=nearest):
+            pass
+    except OSError as error:
+        raise ConfigError(
+            "--out",
+            str(path),
+            f"a path in a writable directory (creating a file in {nearest}: {error.strerror})",
+        ) from None
+
+
 def _file_out(path: Path | None) -> None:
     """Refuse, before any work, an output file that cannot be written."""
     if path is None:
         return
     if path.is_dir():
         raise ConfigError("--out", str(path), "a file to write (this is a directory)")
-    parent = next((p for p in path.parents if p.exists()), None)
+    parent = next((p for p in path.absolute().parents if p.exists()), None)
     if parent is not None and not parent.is_dir():
         raise ConfigError("--out", str(path), f"a path whose parent is a directory ({parent})")
+    if parent is not None:
+        _writable(path, parent)
 
 
 def _dir_out(path: Path) -> None:
-    """Refuse, before any work, an output directory that is an existing file."""
+    """Refuse, before any work, an output directory that is an existing file or that
+    cannot be written."""
     for candidate in (path, *path.parents):
         if candidate.exists() and not candidate.is_dir():
             raise ConfigError("--out", str(path), f"a directory ({candidate} is a file)")
+    nearest = next((p for p in (path.absolute(), *path.absolute().parents) if p.exists()), None)
+    if nearest is not None:
+        _writable(path, nearest)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -181,12 +211,12 @@ def build_parser() -> argparse.ArgumentParser:
     plan = commands.add_parser("plan", help="plan a scene file and write the plan file")
     plan.add_argument("scene", type=Path, help="scene TOML (README, Files: Scene)")
     planning_options(plan, 5.0)
-    plan.add_argument("--out", type=Path, default=None, help="plan JSON to write")
+    plan.add_argument("--out", type=_out_path, default=None, help="plan JSON to write")
     plan.set_defaults(handler=_plan_command)
 
     demo = commands.add_parser("demo", help="plan the default scene; write its plan and pictures")
     planning_options(demo, 5.0)
-    demo.add_argument("--out", type=Path, default=Path("openup-demo"), help="output directory")
+    demo.add_argument("--out", type=_out_path, default=Path("openup-demo"), help="output directory")
     demo.add_argument(
         "--scene",
         type=Path,
@@ -205,7 +235,7 @@ def build_parser() -> argparse.ArgumentParser:
         "plan", type=Path, help="plan JSON (README, Files: Plan), or an execution.json"
     )
     show.add_argument(
-        "--out", type=Path, default=None, help="output directory (default: the plan's)"
+        "--out", type=_out_path, default=None, help="output directory (default: the plan's)"
     )
     show.set_defaults(handler=_show_command)
 
@@ -224,7 +254,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     law.add_argument(
         "--out",
-        type=Path,
+        type=_out_path,
         default=None,
         help="image file: PNG, PDF, SVG, ... by its suffix, PNG without one"
         " (default: <robot>_hand_law.png)",
@@ -260,7 +290,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--fixed-hand", action="store_true", help="also run the fixed preshape (hand frozen at w)"
     )
     bench.add_argument(
-        "--out", type=Path, default=Path("openup-benchmark"), help="output directory"
+        "--out", type=_out_path, default=Path("openup-benchmark"), help="output directory"
     )
     bench.add_argument(
         "--workers", type=_count, default=None, help="local task processes at a time"
@@ -290,7 +320,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="true object pose error: world x, y [m] and yaw about its own z [rad]",
     )
     execute.add_argument(
-        "--out", type=Path, default=None, help="output directory (default: the plan's)"
+        "--out", type=_out_path, default=None, help="output directory (default: the plan's)"
     )
     execute.add_argument(
         "--seed", type=_seed, default=1, help="run seed (draws PhysicsOptions.object_jitter)"
@@ -356,7 +386,7 @@ def build_parser() -> argparse.ArgumentParser:
         " or in physics (MuJoCo: the object free, close, lift, hold)",
     )
     robust.add_argument(
-        "--out", type=Path, default=Path("openup-robustness"), help="output directory"
+        "--out", type=_out_path, default=Path("openup-robustness"), help="output directory"
     )
     robust.add_argument(
         "--workers", type=_count, default=None, help="local task processes at a time"
@@ -388,7 +418,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--noise", type=float, default=1.0, help="sensor noise scale (1: Kinect v1, 0: none)"
     )
     perceive.add_argument("--seed", type=_seed, default=1, help="seed of the sensor noise")
-    perceive.add_argument("--out", type=Path, required=True, help="output directory")
+    perceive.add_argument("--out", type=_out_path, required=True, help="output directory")
     perceive.set_defaults(handler=_perceive_command)
 
     loop = commands.add_parser(
@@ -434,7 +464,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     loop.add_argument("--time", type=_time_limit, default=5.0, help="time limit per plan [s]")
     loop.add_argument(
-        "--out", type=Path, default=Path("openup-closed-loop"), help="output directory"
+        "--out", type=_out_path, default=Path("openup-closed-loop"), help="output directory"
     )
     loop.add_argument("--quiet", action="store_true", help="no progress on stderr")
     loop.set_defaults(handler=_closed_loop_command)

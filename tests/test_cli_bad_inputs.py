@@ -133,6 +133,33 @@ def test_an_output_directory_that_is_a_file_is_refused_first(tmp_path, args):
     assert_bad_input(run_cli(*args, "--out", "afile", cwd=tmp_path), "--out", "afile")
 
 
+@pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="needs Linux's /proc")
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["plan", SCENE],
+        ["demo"],
+        ["execute", "plan.json"],
+        ["perceive", SCENE],
+        ["closed-loop", "--trials", "1"],
+    ],
+    ids=["plan", "demo", "execute", "perceive", "closed-loop"],
+)
+def test_an_output_path_that_cannot_be_written_is_refused_first(tmp_path, args):
+    """--out in a directory that takes no file (/proc, even for root) is refused before
+    any work, naming --out (``plan`` planned, then failed on its temporary file)."""
+    result = run_cli(*args, "--out", "/proc/openup-out", cwd=tmp_path)
+    assert_bad_input(result, "--out", "/proc/openup-out", "writable directory")
+    assert "solution" not in result.stdout
+
+
+def test_an_empty_output_path_is_refused(tmp_path):
+    """``--out ''`` is refused as it was given, not as the current directory '.'."""
+    result = run_cli("plan", SCENE, "--out", "", cwd=tmp_path)
+    assert_bad_input(result, "--out", "expected a path, got ''")
+    assert not list(tmp_path.iterdir())
+
+
 def test_law_refuses_an_unsupported_format(tmp_path):
     """``law --out x.txt`` names --out and the formats matplotlib can write."""
     result = run_cli("law", "--out", "x.txt", cwd=tmp_path)
