@@ -254,7 +254,8 @@ class HandLaw:
             except (TypeError, ValueError):
                 fixed = np.full(n, np.nan)
             if fixed.shape != (n,) or not np.all(np.isfinite(fixed)):
-                raise ConfigError("hand.fixed", self.fixed, f"{n} finite values")
+                shown = self.fixed.tolist() if isinstance(self.fixed, np.ndarray) else self.fixed
+                raise ConfigError("hand.fixed", shown, f"{n} finite values")
             object.__setattr__(self, "fixed", fixed)
         lower, upper = arrays["lower"], arrays["upper"]
         references = [(name, arrays[name]) for name in ("c", "b", "w")]

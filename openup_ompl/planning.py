@@ -70,7 +70,12 @@ def _hand_override(value: str | Sequence[float] | None, law: HandLaw) -> np.ndar
         if value not in ("c", "b", "w"):
             raise ConfigError("fixed_hand", value, "'c', 'b', 'w' or a hand configuration")
         return np.asarray(getattr(law, value))
-    return np.asarray(value, dtype=float)
+    values = list(value) if isinstance(value, (Sequence, np.ndarray)) else None
+    if values is None or not all(_toml.is_number(x) for x in values):
+        raise ConfigError(
+            "fixed_hand", value, "'c', 'b', 'w' or a hand configuration (a list of numbers)"
+        )
+    return np.asarray(values, dtype=float)
 
 
 def check_planner(name: str) -> str:

@@ -306,3 +306,28 @@ def test_closed_loop_takes_the_judge_as_an_argument(lwa3_can: ou.Problem) -> Non
     assert len(seen) == 3 and all(np.allclose(pose, seen[0][1]) for _, pose in seen)
     assert {row["policy"]: row["successes"] for row in rows} == {"0": 0, "1": 1, "covariance": 0}
     assert set(CSV_COLUMNS[:6]) <= set(rows[0])
+
+
+def test_write_perception_takes_a_str_and_refuses_a_file(lwa3_can, lwa3_camera, tmp_path):
+    """``write_perception`` writes its three files into a directory given as a string,
+    the perceived scene loading back with the fitted pose; a path that is a file, or a
+    problem without an object, is refused before anything is written."""
+    from openup_ompl.perception import write_perception
+
+    perception = perceive(lwa3_can, depth_camera=lwa3_camera, rng=np.random.default_rng(3))
+    paths = write_perception(lwa3_can, perception, str(tmp_path / "out"))
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [
+        "cloud.npz",
+        "perceived.toml",
+        "perception.json",
+    ]
+    perceived = ou.load_scene(paths["scene"])
+    assert perceived.object is not None
+    assert not np.allclose(perceived.object.pose, lwa3_can.object.pose)  # type: ignore[union-attr]
+    (tmp_path / "afile").write_text("")
+    with pytest.raises(ConfigError, match="afile"):
+        write_perception(lwa3_can, perception, tmp_path / "afile")
+    bare = dataclasses.replace(lwa3_can, object=None)
+    with pytest.raises(ou.InvalidProblem, match="no \\[object\\]"):
+        write_perception(bare, perception, tmp_path / "bare")
+    assert not (tmp_path / "bare").exists()

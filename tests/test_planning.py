@@ -119,6 +119,25 @@ def test_coupling_matters(tmp_path: Path) -> None:
     assert error.value.in_collision > 0
 
 
+@pytest.mark.parametrize(
+    ("value", "named"),
+    [
+        ([None, None], "fixed_hand: got [None, None]"),
+        (0.04, "fixed_hand: got 0.04"),
+        ([0.01, "a"], "fixed_hand: got [0.01, 'a']"),
+        ([0.01, 0.01, 0.01], "hand.fixed: got [0.01, 0.01, 0.01], expected 2 finite values"),
+        ("x", "fixed_hand: got 'x'"),
+    ],
+)
+def test_bad_fixed_hand_is_named_as_given(value: object, named: str) -> None:
+    """A fixed hand that is not 'c', 'b', 'w' or a list of numbers (one per driven hand
+    joint) is refused before any IK, showing the value as it was given."""
+    problem = oo.load_scene(oo.default_scene_path())
+    with pytest.raises(oo.ConfigError) as error:
+        oo.GraspPlanningSetup(problem, fixed_hand=value)  # type: ignore[arg-type]
+    assert named in str(error.value)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("planner", ["rrt", "rrtstar", "bitstar", "kpiece1", "bkpiece1"])
 def test_other_ompl_planners_use_ik_goal_region(

@@ -18,7 +18,8 @@ import numpy as np
 import pinocchio as pin
 
 from openup_ompl import _toml
-from openup_ompl.exceptions import InvalidProblem, ObjectNotVisible, TooFewPoints
+from openup_ompl._io import write_atomic
+from openup_ompl.exceptions import ConfigError, InvalidProblem, ObjectNotVisible, TooFewPoints
 from openup_ompl.perception.camera import CameraOptions, DepthCamera, DepthView
 from openup_ompl.perception.noise import NoiseOptions, PointCloud, noisy_cloud, normal_sigma
 from openup_ompl.perception.superquadric import (
@@ -241,8 +242,20 @@ def perceived_toml(problem: Problem, perception: Perception) -> str:
     return header + dumps(raw)
 
 
-def write_perception(problem: Problem, perception: Perception, out: Path) -> dict[str, Path]:
-    """Write ``cloud.npz``, ``perception.json`` and ``perceived.toml`` into ``out``."""
+def write_perception(problem: Problem, perception: Perception, out: str | Path) -> dict[str, Path]:
+    """Write ``cloud.npz``, ``perception.json`` and ``perceived.toml`` into the directory
+    ``out`` (created if missing); returns their paths.
+
+    Raises:
+        InvalidProblem: ``problem`` has no object (its true pose is written beside the
+            perceived one).
+        ConfigError: ``out`` is an existing file.
+    """
+    if problem.object is None:
+        raise InvalidProblem("the scene has no [object]")
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ConfigError("out", str(out), "a directory (this is a file)")
     out.mkdir(parents=True, exist_ok=True)
     paths = {
         "cloud": out / "cloud.npz",
@@ -257,8 +270,7 @@ def write_perception(problem: Problem, perception: Perception, out: Path) -> dic
         sigma_lateral=perception.cloud.sigma_lateral,
         scene_points=perception.cloud.scene_points,
     )
-    assert problem.object is not None
     summary = {**perception.summary(), "true_pose": [float(x) for x in problem.object.pose]}
-    paths["summary"].write_text(json.dumps(summary, indent=2) + "\n")
-    paths["scene"].write_text(perceived_toml(problem, perception))
+    write_atomic(paths["summary"], json.dumps(summary, indent=2) + "\n")
+    write_atomic(paths["scene"], perceived_toml(problem, perception))
     return paths
