@@ -429,10 +429,18 @@ def run_benchmark(
         seed: Seed of run 0 (run ``i`` uses ``seed + i``).
         plots: Draw the PNG plots (skipped with a note when matplotlib is missing).
         quiet: No progress on stderr.
+
+    Raises:
+        ConfigError: What :func:`find_problems` and :func:`make_tasks` raise, or a scene
+            file that does not load (:func:`~openup_ompl.scene.load_scene`), before any
+            run.
     """
     out = Path(out)
     hands = ("law", "fixed") if fixed_hand else ("law",)
-    tasks = make_tasks(find_problems(problems), planners, runs, time_limit, hands=hands, seed=seed)
+    found = find_problems(problems)
+    tasks = make_tasks(found, planners, runs, time_limit, hands=hands, seed=seed)
+    for path in found:  # a bad scene is one error here, not a failed task per run
+        load_scene(path)
     run_tasks(tasks, out / "shards", workers=workers, scheduler=scheduler, quiet=quiet)
     records = load_records(tasks, out / "shards")
     db = build_database(records, out)

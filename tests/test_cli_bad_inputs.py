@@ -208,6 +208,18 @@ def test_benchmark_with_no_problem_set_up_says_so(tmp_path, default_scene_text):
     assert_bad_input(result, "no problem could be set up", "panda.far", "out of reach")
 
 
+def test_benchmark_refuses_a_bad_scene_before_any_run(tmp_path):
+    """A scene among the problems that does not load is one line naming its file and key,
+    before any run (it was one failed task per run, reported after their retries)."""
+    (tmp_path / "bad.toml").write_text('robot = "panda"\nstart = [0, 0, 0, 0, 0, 0]\n')
+    result = run_cli(
+        "benchmark", "--problems", SCENE, "bad.toml", "--runs", "2", "--out", "b", cwd=tmp_path
+    )
+    assert_bad_input(result, "bad.toml: start", "7 finite numbers")
+    assert "failed" not in result.stderr
+    assert not (tmp_path / "b" / "shards").exists()
+
+
 def test_benchmark_planner_names_are_checked_like_plans(tmp_path):
     """``benchmark --planners`` goes through the same check as ``plan --planner``: any
     case accepted, a refused planner named with why, before any run."""
