@@ -158,6 +158,7 @@ def make_tasks(
     """
     names = _planner_names(planners)
     check_seeds(seed, runs, MAX_RUNS, "runs")
+    seed, runs = int(seed), int(runs)  # numpy integers accepted; task files hold ints
     check_time_limit(time_limit, "time")
     for hand in hands:
         if hand not in HANDS:

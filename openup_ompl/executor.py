@@ -63,9 +63,9 @@ def check_seeds(first: int, count: int, most: int, where: str) -> None:
     Raises:
         ConfigError: Naming ``where``, ``seed`` or their sum.
     """
-    if not (isinstance(count, int) and not isinstance(count, bool) and 1 <= count <= most):
+    if not (is_integer(count) and 1 <= count <= most):
         raise ConfigError(where, count, f"an integer in [1, {most}]")
-    if not (isinstance(first, int) and not isinstance(first, bool) and 0 <= first < SEED_LIMIT):
+    if not (is_integer(first) and 0 <= first < SEED_LIMIT):
         raise ConfigError("seed", first, "an integer seed in [0, 2^31)")
     if first + count - 1 >= SEED_LIMIT:
         raise ConfigError(

@@ -191,11 +191,7 @@ class IKGoalRegion(ob.GoalSampleableRegion):
         _toml.number(pregrasp_step, "pregrasp_step", low=MIN_RETREAT_STEP)
         if _toml.number(max_joint_step, "max_joint_step") <= 0:
             raise ConfigError("max_joint_step", max_joint_step, "a positive step [rad]")
-        if not (
-            isinstance(max_samples, int)
-            and not isinstance(max_samples, bool)
-            and 1 <= max_samples < 2**31
-        ):
+        if not (_toml.is_integer(max_samples) and 1 <= max_samples < 2**31):
             raise ConfigError("max_samples", max_samples, "an integer in [1, 2^31)")
         super().__init__(si)
         self.goal = goal

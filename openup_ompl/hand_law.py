@@ -225,7 +225,7 @@ class HandLaw:
             object.__setattr__(self, name, bool(getattr(self, name)))
         for name in ("u", "mga", "rotation_weight"):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)):
+            if not is_number(value):
                 raise ConfigError(f"hand.{name}", value, "a number")
         arrays = {}
         for name in ("c", "b", "w", "lower", "upper"):

@@ -188,9 +188,7 @@ class PlanningOptions:
     pregrasp: float = 0.1  # [m]
 
     def __post_init__(self) -> None:
-        if self.u is not None and not (
-            isinstance(self.u, (int, float)) and not isinstance(self.u, bool) and 0 <= self.u <= 1
-        ):
+        if self.u is not None and not (_toml.is_number(self.u) and 0 <= self.u <= 1):
             raise ConfigError("u", self.u, "a number in [0, 1]")
         for name in ("continuous", "open_arrival", "simplify"):
             value = getattr(self, name)
@@ -211,14 +209,12 @@ class PlanningOptions:
         check_planner(self.planner)
         check_time_limit(self.time_limit)
         rounds = self.simplify_rounds
-        if not (isinstance(rounds, int) and not isinstance(rounds, bool) and 0 <= rounds <= 1000):
+        if not (_toml.is_integer(rounds) and 0 <= rounds <= 1000):
             raise ConfigError("simplify_rounds", rounds, "an integer in [0, 1000]")
-        if not (
-            isinstance(self.max_goal_samples, int)
-            and not isinstance(self.max_goal_samples, bool)
-            and 1 <= self.max_goal_samples < 2**31
-        ):
+        if not (_toml.is_integer(self.max_goal_samples) and 1 <= self.max_goal_samples < 2**31):
             raise ConfigError("max_goal_samples", self.max_goal_samples, "an integer in [1, 2^31)")
+        for name in ("simplify_rounds", "max_goal_samples"):  # numpy integers stored as int
+            object.__setattr__(self, name, int(getattr(self, name)))
         if not (_toml.is_number(self.planner_range) and 0 < self.planner_range < math.inf):
             raise ConfigError("planner_range", self.planner_range, "a positive step [rad]")
         for name, kind in (("ik_options", IKOptions), ("ikbirrt_options", IKBiRRTOptions)):

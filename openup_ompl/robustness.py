@@ -188,6 +188,8 @@ class RobustnessOptions:
             values("yaw", self.yaws, lambda x: abs(x) <= math.pi, "angles in [-pi, pi] rad"),
         )
         check_seeds(self.first_seed, self.seeds, MAX_SEEDS, "seeds")
+        for name in ("first_seed", "seeds"):  # numpy integers accepted, stored as int
+            object.__setattr__(self, name, int(getattr(self, name)))
         check_planner(self.planner)
         check_time_limit(self.time_limit, "time")
         friction = self.friction

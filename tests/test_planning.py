@@ -670,3 +670,36 @@ def test_a_retreat_blocked_by_the_scene_gives_the_grasp_itself(name: str, blocke
             q = setup.checker.coupled_q(step)
             assert world.colliding_pairs(q) and not world.touches_environment(q)
             assert setup.goal.task_error(grasp) <= GOAL_THRESHOLD
+
+
+def test_numpy_scalars_are_accepted_wherever_numbers_are() -> None:
+    """A sweep written with numpy (``np.arange`` seeds, ``np.linspace`` values) passes its
+    integers and floats to every option class; integers are stored as Python ints (task
+    and plan files hold them), and a bool is still refused."""
+    from openup_ompl.benchmark import find_problems, make_tasks
+    from openup_ompl.perception import CameraOptions, NoiseOptions
+    from openup_ompl.perception.closed_loop import ClosedLoopOptions
+    from openup_ompl.physics import PhysicsOptions
+    from openup_ompl.robustness import RobustnessOptions
+
+    options = oo.PlanningOptions(
+        u=np.float32(0.3), simplify_rounds=np.int64(2), max_goal_samples=np.int32(5)
+    )
+    assert type(options.simplify_rounds) is int and type(options.max_goal_samples) is int
+    sweep = RobustnessOptions(first_seed=np.int64(3), seeds=np.int64(2))
+    assert (sweep.first_seed, sweep.seeds) == (3, 2) and type(sweep.seeds) is int
+    loop = ClosedLoopOptions(first_seed=np.int64(1), trials=np.int64(2))
+    assert type(loop.trials) is int
+    assert type(CameraOptions(width=np.int64(64)).width) is int
+    NoiseOptions(scale=np.float32(1.0))
+    PhysicsOptions(timestep=np.float64(0.002), lift_height=np.float32(0.1))
+    tasks = make_tasks(
+        find_problems([oo.default_scene_path()]), ["ikbirrt"], np.int64(2), 1.0, seed=np.int64(4)
+    )
+    assert [task.seed for task in tasks] == [4, 5] and type(tasks[0].seed) is int
+    law = oo.load_scene(oo.default_scene_path()).hand_law
+    assert dataclasses.replace(law, u=np.float32(0.5), mga=np.float64(0.25)).u == 0.5
+    with pytest.raises(oo.ConfigError, match="max_goal_samples"):
+        oo.PlanningOptions(max_goal_samples=np.bool_(True))
+    with pytest.raises(oo.ConfigError, match="seeds"):
+        RobustnessOptions(seeds=True)

@@ -66,10 +66,11 @@ class CameraOptions:
     def __post_init__(self) -> None:
         for name in ("width", "height"):
             value = getattr(self, name)
-            if not (isinstance(value, int) and not isinstance(value, bool) and 1 <= value <= 4096):
+            if not (_toml.is_integer(value) and 1 <= value <= 4096):
                 raise ConfigError(
                     f"camera.{name}", value, "an integer number of pixels in [1, 4096]"
                 )
+            object.__setattr__(self, name, int(value))  # numpy integers stored as int
         positive = {"fov": self.fov, "distance": self.distance, "max_range": self.max_range}
         for name in ("fx", "fy"):
             if getattr(self, name) is not None:

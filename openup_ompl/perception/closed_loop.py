@@ -107,6 +107,8 @@ class ClosedLoopOptions:
                 if not 0 <= value <= 1:
                     raise ConfigError("policy", policy, "a u in [0, 1] or 'covariance'")
         check_seeds(self.first_seed, self.trials, MAX_TRIALS, "trials")
+        for name in ("first_seed", "trials"):  # numpy integers accepted, stored as int
+            object.__setattr__(self, name, int(getattr(self, name)))
         for noise in self.noises:
             NoiseOptions(scale=noise)
         for distance in self.distances:

@@ -26,6 +26,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from openup_ompl._toml import is_number
 from openup_ompl.exceptions import ConfigError
 from openup_ompl.perception.camera import DepthView
 
@@ -66,7 +67,7 @@ class NoiseOptions:
             "focal": (self.focal, 1e-6, 1e6),
         }
         for name, (value, low, high) in checks.items():
-            ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+            ok = is_number(value)
             if not (ok and math.isfinite(value) and low <= value <= high):
                 raise ConfigError(f"noise.{name}", value, f"a finite number in [{low}, {high}]")
 

@@ -158,10 +158,7 @@ class PhysicsOptions:
                 "object_friction",
             )
             if not (
-                isinstance(value, (int, float))
-                and not isinstance(value, bool)
-                and math.isfinite(value)
-                and (value >= 0 if zero_ok else value > 0)
+                is_number(value) and math.isfinite(value) and (value >= 0 if zero_ok else value > 0)
             ):
                 expected = "a number >= 0" if zero_ok else "a positive number"
                 raise ConfigError(f"PhysicsOptions.{item.name}", value, expected)
