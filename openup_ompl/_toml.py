@@ -72,6 +72,11 @@ def is_number(value: Any) -> bool:
     )
 
 
+def is_finite(value: Any) -> bool:
+    """Whether ``value`` is a finite real number, Python's or numpy's (a bool is not)."""
+    return is_number(value) and math.isfinite(value)
+
+
 def is_integer(value: Any) -> bool:
     """Whether ``value`` is an integer, Python's or numpy's (a bool is not)."""
     return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from openup_ompl._toml import is_number, unknown_key
+from openup_ompl._toml import is_finite, is_number, unknown_key
 from openup_ompl.exceptions import ConfigError
 
 #: Names accepted for :attr:`HandLaw.distance`.
@@ -79,7 +79,7 @@ def _check_unit(name: str, value: float, *, low: float = 0.0, low_open: bool = F
 
 def _check_distance(d: float) -> float:
     """``d`` as a float if it is a finite normalised distance ``>= 0``."""
-    if not (is_number(d) and math.isfinite(d) and d >= 0.0):
+    if not (is_finite(d) and d >= 0.0):
         raise ConfigError("d", d, "a finite normalised distance >= 0")
     d = float(d)
     return d
@@ -87,7 +87,7 @@ def _check_distance(d: float) -> float:
 
 def _check_weight(name: str, value: float) -> float:
     """``value`` as a float if it is a rotation weight, a finite number ``>= 0`` [m/rad]."""
-    if not (is_number(value) and math.isfinite(value) and value >= 0):
+    if not (is_finite(value) and value >= 0):
         raise ConfigError(name, value, "a number >= 0 [m/rad]")
     return float(value)
 

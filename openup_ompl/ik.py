@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from openup_ompl._toml import is_integer, is_number
+from openup_ompl._toml import is_finite, is_integer
 from openup_ompl.exceptions import ConfigError
 from openup_ompl.robot import Robot
 
@@ -61,7 +61,7 @@ class IKOptions:
                 raise ConfigError(f"IKOptions.{name}", value, "an integer >= 1")
         for name in ("position_tolerance", "rotation_tolerance", "damping", "step", "stall_ratio"):
             value = getattr(self, name)
-            if not (is_number(value) and math.isfinite(value) and value > 0):
+            if not (is_finite(value) and value > 0):
                 raise ConfigError(f"IKOptions.{name}", value, "a positive number")
         for name, limit, unit in (
             ("position_tolerance", MAX_POSITION_TOLERANCE, "m"),

@@ -193,7 +193,7 @@ class RobustnessOptions:
         check_planner(self.planner)
         check_time_limit(self.time_limit, "time")
         friction = self.friction
-        if not (_toml.is_number(friction) and math.isfinite(friction) and friction >= 0):
+        if not (_toml.is_finite(friction) and friction >= 0):
             raise ConfigError("friction", friction, "a coefficient >= 0")
         if not isinstance(self.open_arrival, bool):
             raise ConfigError("open_arrival", self.open_arrival, "true or false")

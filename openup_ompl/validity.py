@@ -14,7 +14,7 @@ import numpy as np
 import pinocchio as pin
 from ompl import base as ob
 
-from openup_ompl._toml import is_integer, is_number
+from openup_ompl._toml import is_finite, is_integer
 from openup_ompl.collision import CollisionWorld, ThreadContext
 from openup_ompl.exceptions import ConfigError
 from openup_ompl.hand_law import HandLaw, NormalizedDistance
@@ -115,10 +115,10 @@ class CoupledChecker:
         padding: float | None = None,
         coarse_levels: int = COARSE_LEVELS,
     ) -> None:
-        if not (is_number(resolution) and math.isfinite(resolution) and resolution > 0):
+        if not (is_finite(resolution) and resolution > 0):
             raise ConfigError("resolution", resolution, "a positive distance [m]")
         padding = resolution / 2 if padding is None else padding
-        if not (is_number(padding) and math.isfinite(padding) and padding >= 0):
+        if not (is_finite(padding) and padding >= 0):
             raise ConfigError("padding", padding, "a distance >= 0 [m]")
         if not (is_integer(coarse_levels) and coarse_levels >= 0):
             raise ConfigError("coarse_levels", coarse_levels, "an integer >= 0")

@@ -76,20 +76,20 @@ class CameraOptions:
             if getattr(self, name) is not None:
                 positive[name] = getattr(self, name)
         for name, value in positive.items():
-            if not (_toml.is_number(value) and math.isfinite(value) and value > 0):
+            if not (_toml.is_finite(value) and value > 0):
                 raise ConfigError(f"camera.{name}", value, "a positive finite number")
         if not self.fov < 180:
             raise ConfigError("camera.fov", self.fov, "a field of view in (0, 180) deg")
         for name in ("cx", "cy", "azimuth"):
             value = getattr(self, name)
-            if value is not None and not (_toml.is_number(value) and math.isfinite(value)):
+            if value is not None and not (_toml.is_finite(value)):
                 raise ConfigError(f"camera.{name}", value, "a finite number")
         if not (_toml.is_number(self.elevation) and -90 < self.elevation < 90):
             raise ConfigError("camera.elevation", self.elevation, "an angle in (-90, 90) deg")
         for name in ("position", "target"):
             value = getattr(self, name)
             if value is not None and not (
-                len(value) == 3 and all(_toml.is_number(x) and math.isfinite(x) for x in value)
+                len(value) == 3 and all(_toml.is_finite(x) for x in value)
             ):
                 raise ConfigError(f"camera.{name}", value, "[x, y, z], finite, in metres")
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
-from openup_ompl._toml import is_number
+from openup_ompl._toml import is_finite
 from openup_ompl.exceptions import ConfigError
 
 __all__ = ["PHASE_MAX", "PhysicsOptions"]
@@ -130,7 +130,7 @@ class PhysicsOptions:
         if not (
             isinstance(solimp, (tuple, list))
             and len(solimp) == 5
-            and all(is_number(x) and math.isfinite(x) for x in solimp)
+            and all(is_finite(x) for x in solimp)
             and 0 < solimp[0] <= solimp[1] < 1
             and solimp[2] > 0
         ):
@@ -157,9 +157,7 @@ class PhysicsOptions:
                 "arm_kv",
                 "object_friction",
             )
-            if not (
-                is_number(value) and math.isfinite(value) and (value >= 0 if zero_ok else value > 0)
-            ):
+            if not (is_finite(value) and (value >= 0 if zero_ok else value > 0)):
                 expected = "a number >= 0" if zero_ok else "a positive number"
                 raise ConfigError(f"PhysicsOptions.{item.name}", value, expected)
         if self.contact_timeconst < 2 * self.timestep:

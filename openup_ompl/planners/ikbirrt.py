@@ -44,7 +44,7 @@ import numpy as np
 from ompl import base as ob
 from ompl import geometric as og
 
-from openup_ompl._toml import is_integer, is_number
+from openup_ompl._toml import is_finite, is_integer, is_number
 from openup_ompl.exceptions import ConfigError
 from openup_ompl.goal import MIN_RETREAT_STEP, GraspGoal, IKGoalRegion
 
@@ -80,7 +80,7 @@ class IKBiRRTOptions:
     aim_new_roots: bool = True
 
     def __post_init__(self) -> None:
-        if not (is_number(self.max_step) and math.isfinite(self.max_step) and self.max_step > 0):
+        if not (is_finite(self.max_step) and self.max_step > 0):
             raise ConfigError("IKBiRRTOptions.max_step", self.max_step, "a positive step [rad]")
         if not (is_number(self.p_sample_goal) and 0.0 <= self.p_sample_goal <= 1.0):
             raise ConfigError(
@@ -88,10 +88,10 @@ class IKBiRRTOptions:
             )
         if not (is_integer(self.goal_restarts) and self.goal_restarts >= 1):
             raise ConfigError("IKBiRRTOptions.goal_restarts", self.goal_restarts, "an integer >= 1")
-        if not (is_number(self.retreat) and math.isfinite(self.retreat) and self.retreat >= 0):
+        if not (is_finite(self.retreat) and self.retreat >= 0):
             raise ConfigError("IKBiRRTOptions.retreat", self.retreat, "a distance >= 0 [m]")
         step = self.retreat_step
-        if not (is_number(step) and math.isfinite(step) and step >= MIN_RETREAT_STEP):
+        if not (is_finite(step) and step >= MIN_RETREAT_STEP):
             raise ConfigError(
                 "IKBiRRTOptions.retreat_step",
                 self.retreat_step,

@@ -15,7 +15,6 @@ import base64
 import gzip
 import html
 import json
-import math
 import struct
 import warnings
 from dataclasses import dataclass
@@ -25,7 +24,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from openup_ompl._toml import is_number
+from openup_ompl._toml import is_finite
 from openup_ompl.exceptions import ConfigError, MissingExtra
 from openup_ompl.viz._scene import PlanScene
 
@@ -53,9 +52,9 @@ class HtmlOptions:
     def __post_init__(self) -> None:
         for name in ("fps", "duration", "grasp_axes"):
             value = getattr(self, name)
-            if not (is_number(value) and math.isfinite(value) and value > 0):
+            if not (is_finite(value) and value > 0):
                 raise ConfigError(f"html {name}", value, "a positive number")
-        if not (is_number(self.hold) and math.isfinite(self.hold) and self.hold >= 0):
+        if not (is_finite(self.hold) and self.hold >= 0):
             raise ConfigError("html hold", self.hold, "a duration >= 0 [s]")
 
 
