@@ -226,9 +226,13 @@ class CollisionWorld:
             )
 
     def colliding_pairs(self, q: np.ndarray) -> list[tuple[str, str]]:
-        """Names of the geometry pairs in collision at ``q``: for error messages."""
+        """Names of the geometry pairs in collision at ``q``, each with its margin (the
+        padding, and between the robot's own links :func:`self_margins`), as
+        :meth:`in_collision` checks them: for error messages."""
         data = self.model.createData()
-        geometry_data = _without_warm_start(self.geometry_model.createData(), distances=False)
+        geometry_data = _with_margins(
+            _without_warm_start(self.geometry_model.createData(), distances=False), self.margins
+        )
         pin.computeCollisions(self.model, data, self.geometry_model, geometry_data, q, False)
         names = [g.name for g in self.geometry_model.geometryObjects]
         return [

@@ -15,7 +15,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from openup_ompl._toml import is_integer
+from openup_ompl._toml import is_finite, is_integer
 from openup_ompl.exceptions import ConfigError
 
 __all__ = [
@@ -76,7 +76,7 @@ def check_torsion(torsion: float) -> float:
     Raises:
         ConfigError: Otherwise.
     """
-    if not (math.isfinite(torsion) and 0 <= torsion <= MAX_TORSION):
+    if not (is_finite(torsion) and 0 <= torsion <= MAX_TORSION):
         raise ConfigError(
             "torsion", torsion, f"a torsional friction lever in [0, {MAX_TORSION:g}] m"
         )
@@ -130,11 +130,18 @@ def contact_wrenches(
     approximation of the soft-finger limit, so a grasp found in force closure is one.
     """
     p, n = _as_contacts(points, normals, "contact_wrenches")
-    if not (np.isfinite(friction) and friction >= 0):
+    if not (is_finite(friction) and friction >= 0):
         raise ConfigError("friction", friction, "a coefficient >= 0")
     if not (is_integer(edges) and 3 <= edges <= MAX_EDGES):
         raise ConfigError("edges", edges, f"an integer in [3, {MAX_EDGES}] per friction cone")
-    origin = p.mean(axis=0) if center is None else np.asarray(center, dtype=float)
+    origin = p.mean(axis=0)
+    if center is not None:
+        try:
+            origin = np.array(center, dtype=float)
+        except (TypeError, ValueError):
+            origin = np.full(3, np.nan)
+        if origin.shape != (3,) or not np.isfinite(origin).all():
+            raise ConfigError("center", center, "a point [x, y, z] of finite numbers [m]")
     arms = p - origin
     scale = max(float(np.linalg.norm(arms, axis=1).mean()), 1e-9)
     t1, t2 = _tangents(n)
@@ -199,8 +206,15 @@ def enclosed(normals: object, axis: Sequence[float] | np.ndarray | None = None) 
         return False
     if axis is None:
         axis = np.linalg.svd(n)[2][-1]
-    a = np.asarray(axis, dtype=float)
-    a = a / np.linalg.norm(a)
+    try:
+        a = np.array(axis, dtype=float)
+    except (TypeError, ValueError):
+        a = np.full(3, np.nan)
+    length = float(np.linalg.norm(a)) if a.shape == (3,) else math.nan
+    if not (math.isfinite(length) and length > 1e-9):
+        shown = axis.tolist() if isinstance(axis, np.ndarray) else axis
+        raise ConfigError("enclosed: axis", shown, "a finite non-zero 3-vector")
+    a = a / length
     e1, e2 = _tangents(a[None, :])
     planar = np.stack([n @ e1[0], n @ e2[0]])
     keep = np.linalg.norm(planar, axis=0) > 1e-6

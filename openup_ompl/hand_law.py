@@ -316,8 +316,7 @@ class HandLaw:
     def __call__(self, d: float) -> np.ndarray:
         """Hand configuration at normalised distance ``d`` (finite, ``>= 0``), clipped to
         the joint limits."""
-        if not d >= 0.0 or d == math.inf:  # NaN fails the first test
-            raise ConfigError("d", d, "a finite normalised distance >= 0")
+        d = _check_distance(d)
         if self.fixed_clipped is not None:
             return self.fixed_clipped.copy()
         if d > self.mga:
@@ -326,15 +325,25 @@ class HandLaw:
 
     def batch(self, d: np.ndarray) -> np.ndarray:
         """Hand configurations for a vector of finite distances ``>= 0``: shape
-        ``(len(d), size)``."""
-        d = np.asarray(d, dtype=float)
-        if not np.all(np.isfinite(d) & (d >= 0.0)):
-            raise ConfigError("d", d.tolist(), "finite normalised distances >= 0")
+        ``(len(d), size)``.
+
+        Raises:
+            ConfigError: ``d`` is not a vector of finite numbers ``>= 0``.
+        """
+        try:
+            d = np.array(d, dtype=float)
+        except (TypeError, ValueError):
+            raise ConfigError("d", d, "a vector of finite normalised distances >= 0") from None
+        if d.ndim != 1 or not np.all(np.isfinite(d) & (d >= 0.0)):
+            raise ConfigError("d", d.tolist(), "a vector of finite normalised distances >= 0")
         return self.columns(d).T
 
     def columns(self, d: np.ndarray) -> np.ndarray:
         """Hand configurations for a vector of distances as the columns of an array of
-        shape ``(size, len(d))`` (:meth:`batch` is its transpose)."""
+        shape ``(size, len(d))``: :meth:`batch` transposed, without its check of ``d``
+        (the planner's hot path, given the distances it computed; the low branch is
+        clipped to the joint limits only if it leaves them on ``[0, mga]``, so a negative
+        ``d`` may be extrapolated beyond them)."""
         d = np.asarray(d, dtype=float)
         if self.fixed_clipped is not None:
             return np.repeat(self.fixed_clipped[:, None], d.size, axis=1)

@@ -156,7 +156,11 @@ def number_rows(value: Any, where: str, width: int) -> np.ndarray:
             (``where[i]`` or ``where[i][j]``).
     """
     if isinstance(value, np.ndarray):
-        value = value.tolist()
+        if value.dtype.kind in "fiu" and value.ndim == 2 and value.shape[1] == width:
+            array = value.astype(float)
+            if array.size and np.isfinite(array).all():
+                return array
+        value = value.tolist()  # checked below, naming the bad row or value
     if not (isinstance(value, list) and value):
         raise ConfigError(where, value, f"a non-empty list of rows of {width} numbers")
     for i, row in enumerate(value):

@@ -24,12 +24,14 @@ from openup_ompl.exceptions import ConfigError, InvalidProblem, PlanningFailed, 
 from openup_ompl.goal import GOAL_THRESHOLD, GraspGoal, IKGoalRegion
 from openup_ompl.hand_law import HandLaw
 from openup_ompl.ik import IKOptions, IKSolver
-from openup_ompl.plan import Plan
+from openup_ompl.plan import Plan, number_rows
 from openup_ompl.planners.ikbirrt import IKBiRRT, IKBiRRTOptions
 from openup_ompl.robot import Robot
 from openup_ompl.scene import Problem
 from openup_ompl.validity import (
     DEFAULT_RESOLUTION,
+    RESOLUTION_MAX,
+    RESOLUTION_MIN,
     CoupledChecker,
     CoupledMotionValidator,
     CoupledValidityChecker,
@@ -104,12 +106,6 @@ def arm_state_space(robot: Robot) -> ob.RealVectorStateSpace:
 #: condition overflows its clock arithmetic for limits near 1e10 s: it then reports a
 #: timeout at once.
 TIME_LIMIT_MAX = 1e6
-#: The coarsest motion-check resolution accepted [m]: beyond it the checks, and the
-#: default padding of half of it, stop describing the scene.
-RESOLUTION_MAX = 0.1
-#: The finest motion-check resolution accepted [m]: a tenth of a millimetre, 60 times
-#: finer than the default (at 1e-12 m a motion check tried to allocate 80 GiB).
-RESOLUTION_MIN = 1e-4
 
 
 def check_time_limit(time_limit: float, where: str = "time_limit") -> float:
@@ -147,8 +143,9 @@ class PlanningOptions:
             ``"b"``, ``"w"`` or joint values) for the whole reach instead of the law.
         resolution: Motion-check resolution [m]: no robot point moves more between two
             checked states (see :data:`~openup_ompl.validity.DEFAULT_RESOLUTION`).
-        padding: Margin [m] around obstacles and object (default ``resolution / 2``,
-            which makes motion checks exact for the unpadded scene).
+        padding: Margin [m] around obstacles and object, and between the robot's own
+            links (up to twice it for a pair: ``collision.self_margins``); default
+            ``resolution / 2``, which makes motion checks exact for the unpadded scene.
         planner: Planner name, one of :data:`PLANNERS` (what :meth:`GraspPlanningSetup.solve`
             uses when given none).
         time_limit: Planning time [s] (idem).
@@ -338,6 +335,10 @@ class GraspPlanningSetup:
         step = resolution / float(np.max(self.checker.motion_weights))
         si.setStateValidityCheckingResolution(min(1.0, step / space.getMaximumExtent()))
 
+        try:
+            robot.check_arm(problem.start, "start")
+        except ConfigError as error:  # a joint beyond its limits: no plan can leave from it
+            raise InvalidProblem(f"start configuration outside the joint limits: {error}") from None
         if not self.checker.is_valid(problem.start):
             world = self.checker.finest_world
             pairs = world.colliding_pairs(self.checker.coupled_q(problem.start))
@@ -379,7 +380,10 @@ class GraspPlanningSetup:
         return planner
 
     def reseed(self, seed: int | None) -> None:
-        """Restart the run's random generators (IK restarts, goal sampling) from ``seed``."""
+        """Restart the run's random generators (IK restarts, goal sampling) from ``seed``
+        (an integer in ``[0, 2^31)``; ``None`` draws one)."""
+        if seed is not None and not (_toml.is_integer(seed) and 0 <= seed < 2**31):
+            raise ConfigError("seed", seed, "an integer seed in [0, 2^31) or None")
         self.goal.rng = np.random.default_rng(seed)
         self.goal.solutions[:] = self._initial_solutions
         self.goal_region.forget()
@@ -521,9 +525,15 @@ class GraspPlanningSetup:
                 break
 
     def densify(self, waypoints: np.ndarray) -> np.ndarray:
-        """Full configurations along the waypoints at the checker's resolution, the hand
-        from the law at every row: ``(N, nq)``."""
-        return self._densify(waypoints)[0]
+        """Full configurations along the waypoints (arm configurations, ``(M, dof)``) at
+        the checker's resolution, the hand from the law at every row: ``(N, nq)``.
+
+        Raises:
+            ConfigError: ``waypoints`` is not a non-empty array of rows of ``dof`` finite
+                numbers.
+        """
+        dof = self.problem.robot.arm_idx.size
+        return self._densify(number_rows(waypoints, "waypoints", dof))[0]
 
     def _densify(self, waypoints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`densify`, and for each row the index of the motion it ends on (0 for the
@@ -542,9 +552,17 @@ class GraspPlanningSetup:
         given: :meth:`solve` leaves out the rows inside motions the checker certified).
 
         Raises:
+            ConfigError: ``path`` is not a non-empty array of rows of ``nq`` finite
+                numbers, or ``rows`` holds an index outside it.
             VerifyFailed: With the reason; never expected from a correct planner.
         """
         robot = self.problem.robot
+        path = number_rows(path, "path", robot.model.nq)
+        if rows is not None:
+            rows = np.asarray(rows)
+            if rows.dtype.kind not in "iu" or np.any((rows < 0) | (rows >= len(path))):
+                expected = f"indices of path rows in [0, {len(path)})"
+                raise ConfigError("rows", rows.tolist(), expected)
         arms = path[:, robot.arm_idx]
         if not np.allclose(arms[0], self.problem.start, atol=1e-9):
             raise VerifyFailed("the path does not start at the start")

@@ -181,10 +181,26 @@ class Robot:
         return pin.neutral(self.model)
 
     def full_q(self, arm: np.ndarray, hand: np.ndarray) -> np.ndarray:
-        """The full configuration ``q`` from arm and hand joint values."""
+        """The full configuration ``q`` from arm joint values and hand joint values: the
+        driven ones (:attr:`n_driven`, the followers computed) or all of
+        :attr:`hand_joints` (followers included, as given).
+
+        Raises:
+            ConfigError: ``arm`` or ``hand`` of another length.
+        """
+        arm = np.asarray(arm, dtype=float)
+        if arm.shape != self.arm_idx.shape:
+            raise ConfigError("arm", arm.tolist(), f"{self.arm_idx.size} arm joint values")
+        hand = np.asarray(hand, dtype=float)
+        if hand.shape not in ((self.n_driven,), self.hand_idx.shape):
+            raise ConfigError(
+                "hand",
+                hand.tolist(),
+                f"{self.n_driven} driven hand joint values or {self.hand_idx.size} with the "
+                "followers",
+            )
         q = self.neutral()
         q[self.arm_idx] = arm
-        hand = np.asarray(hand, dtype=float)
         q[self.hand_idx] = self.expand_hand(hand) if hand.size == self.n_driven else hand
         return q
 

@@ -14,7 +14,7 @@ import numpy as np
 import pinocchio as pin
 from ompl import base as ob
 
-from openup_ompl._toml import is_finite, is_integer
+from openup_ompl._toml import is_finite, is_integer, is_number
 from openup_ompl.collision import CollisionWorld, ThreadContext
 from openup_ompl.exceptions import ConfigError
 from openup_ompl.hand_law import HandLaw, NormalizedDistance
@@ -34,6 +34,12 @@ from openup_ompl.scene import Problem
 #: :mod:`openup_ompl.motion_bound`). Obstacles and object are padded by half of it, which
 #: makes the check of a whole motion exact for the unpadded scene.
 DEFAULT_RESOLUTION = 0.006
+#: The coarsest motion-check resolution accepted [m]: beyond it the checks, and the
+#: default padding of half of it, stop describing the scene.
+RESOLUTION_MAX = 0.1
+#: The finest motion-check resolution accepted [m]: a tenth of a millimetre, 60 times
+#: finer than the default (at 1e-12 m a motion check tried to allocate 80 GiB).
+RESOLUTION_MIN = 1e-4
 #: Forward kinematics for ``d`` at every this many states of a motion; the states between
 #: are bounded from these (see :meth:`CoupledChecker._law_distances`).
 ANCHOR_STRIDE = 8
@@ -49,6 +55,8 @@ REFINE_LEVELS = 3
 #: margins between are used where the robot passes closer (see
 #: :meth:`CoupledChecker.check_motion`).
 COARSE_LEVELS = 3
+#: The most doublings accepted (the widest margin is ``padding * 2**levels``).
+COARSE_LEVELS_MAX = 16
 #: A motion's displacement bound is tightened from its two ends' placements
 #: (:func:`~openup_ompl.motion_bound.local_reach`, about 25 us) when the global weights'
 #: bound spans more than this many of the first round's intervals, or when the first round
@@ -81,8 +89,11 @@ class CoupledChecker:
         problem: Robot, scene and grasp.
         law: The hand law (``problem.hand_law`` if omitted).
         world: A collision world to reuse (built from ``problem`` if omitted).
-        resolution: Motion-check resolution [m] (see :data:`DEFAULT_RESOLUTION`).
-        padding: Margin [m] added around obstacles and object; ``None`` gives
+        resolution: Motion-check resolution [m] (see :data:`DEFAULT_RESOLUTION`), in
+            ``[RESOLUTION_MIN, RESOLUTION_MAX]``.
+        padding: Margin [m] added around obstacles and object, and between the robot's
+            own links (a pair's margin is up to twice it: see
+            :func:`~openup_ompl.collision.self_margins`); ``None`` gives
             ``resolution / 2``, the margin that makes motion checks exact. Where a state
             lacks that margin, halved margins (:data:`REFINE_LEVELS`) are tried and the
             motion around it is cut finer; ``0`` turns the guarantee off.
@@ -115,13 +126,17 @@ class CoupledChecker:
         padding: float | None = None,
         coarse_levels: int = COARSE_LEVELS,
     ) -> None:
-        if not (is_finite(resolution) and resolution > 0):
-            raise ConfigError("resolution", resolution, "a positive distance [m]")
+        if not (is_number(resolution) and RESOLUTION_MIN <= resolution <= RESOLUTION_MAX):
+            raise ConfigError(
+                "resolution", resolution, f"a length in [{RESOLUTION_MIN:g}, {RESOLUTION_MAX:g}] m"
+            )
         padding = resolution / 2 if padding is None else padding
         if not (is_finite(padding) and padding >= 0):
             raise ConfigError("padding", padding, "a distance >= 0 [m]")
-        if not (is_integer(coarse_levels) and coarse_levels >= 0):
-            raise ConfigError("coarse_levels", coarse_levels, "an integer >= 0")
+        if not (is_integer(coarse_levels) and 0 <= coarse_levels <= COARSE_LEVELS_MAX):
+            raise ConfigError(
+                "coarse_levels", coarse_levels, f"an integer in [0, {COARSE_LEVELS_MAX}]"
+            )
         self.problem = problem
         self.robot = problem.robot
         self.law = problem.hand_law if law is None else law

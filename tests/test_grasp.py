@@ -296,3 +296,19 @@ def test_robot_without_hand_joints_is_refused(tmp_path, panda_toml: str) -> None
     )
     with pytest.raises(ConfigError, match="hand_joints"):
         oo.load_scene(scene)
+
+
+def test_enclosed_and_force_closure_refuse_a_bad_axis_or_centre():
+    """An axis that is not a finite non-zero 3-vector, or a torque centre that is not a
+    finite point, is a ConfigError (they returned False, or raised numpy's LinAlgError)."""
+    normals = np.array([[1.0, 0.0, 0.0], [-1.0, 0.1, 0.0], [0.0, -1.0, 0.0]])
+    points = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    assert enclosed(normals, [0.0, 0.0, 1.0])
+    for axis in ([0.0, 1.0], [0.0, 0.0, 0.0], [math.nan, 0.0, 1.0], "z"):
+        with pytest.raises(ConfigError, match="enclosed: axis"):
+            enclosed(normals, axis)
+    with pytest.raises(ConfigError, match="center"):
+        force_closure(points, normals, center=[math.nan] * 3)
+    for name, value in (("friction", "a"), ("torsion", None)):
+        with pytest.raises(ConfigError, match=name):
+            force_closure(points, normals, **{name: value})

@@ -303,3 +303,16 @@ def test_normalized_distance_names_a_bad_rotation_weight(weight):
     start = pin.SE3(np.eye(3), np.array([0.5, 0.0, 0.5]))
     with pytest.raises(ou.ConfigError, match="rotation_weight"):
         ou.NormalizedDistance(pin.SE3.Identity(), start, "weighted", weight)
+
+
+def test_law_refuses_distances_it_cannot_read():
+    """The law at a non-number, or a batch that is not a vector, is a ConfigError naming
+    ``d`` (a string was a TypeError; a matrix came back with a shape the docs do not
+    give)."""
+    law = ou.load_scene(ou.default_scene_path()).hand_law
+    for bad in ("a", None, float("nan"), -0.1):
+        with pytest.raises(ou.ConfigError, match="^d: "):
+            law(bad)  # type: ignore[arg-type]
+    with pytest.raises(ou.ConfigError, match="a vector"):
+        law.batch(np.ones((2, 3)))
+    assert law.batch([0.1, 0.5]).shape == (2, law.size)

@@ -339,3 +339,16 @@ def test_physics_judge_executes_against_the_true_object():
     missed = physics_judge(setup, plan, displaced(problem, 0.15, 0.0))
     assert not missed["success"]
     assert missed["cause"] == "no contact"
+
+
+def test_execute_plan_takes_a_plan_and_checks_seed_and_options():
+    """A Plan from solve() is executed as its file would be (it was a TypeError); a seed
+    that is not an integer in [0, 2^31) and options that are not PhysicsOptions are
+    ConfigErrors before any simulation."""
+    plan = ou.GraspPlanningSetup(ou.load_scene(ou.default_scene_path())).solve(seed=1)
+    bad = (({"seed": "a"}, "seed"), ({"seed": -1}, "seed"), ({"options": "x"}, "options"))
+    for kwargs, named in bad:
+        with pytest.raises(ConfigError, match=named):
+            execute_plan(plan, **kwargs)
+    record = execute_plan(plan, (0.0, 0.0, 0.0), frames=False)
+    assert record.success

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import inspect
+import math
 import os
 import stat
 from pathlib import Path
@@ -703,3 +704,57 @@ def test_numpy_scalars_are_accepted_wherever_numbers_are() -> None:
         oo.PlanningOptions(max_goal_samples=np.bool_(True))
     with pytest.raises(oo.ConfigError, match="seeds"):
         RobustnessOptions(seeds=True)
+
+
+@pytest.mark.parametrize(
+    ("change", "raised", "named"),
+    [
+        ({"start": "outside"}, oo.InvalidProblem, "outside the joint limits"),
+        ({"start": [math.nan] * 7}, oo.ConfigError, "problem.start"),
+        ({"start": [0.0] * 3}, oo.ConfigError, "problem.start"),
+        ({"grasp_pose": "nan"}, oo.ConfigError, "problem.grasp_pose"),
+        ({"grasp_pose": [0.0] * 7}, oo.ConfigError, "unit quaternion"),
+    ],
+)
+def test_a_problem_built_in_code_is_checked(change, raised, named):
+    """A Problem made with dataclasses.replace is checked as a scene file is: a NaN grasp
+    pose was a bare RuntimeError from OMPL, a zero quaternion an 'unreachable' grasp, a
+    start beyond a limit a planning failure after the whole time limit."""
+    problem = oo.load_scene(oo.default_scene_path())
+    if change.get("start") == "outside":
+        change = {"start": problem.start - np.eye(7)[0] * 9.0}
+    if change.get("grasp_pose") == "nan":
+        change = {"grasp_pose": np.r_[math.nan, problem.grasp_pose[1:]]}
+    with pytest.raises(raised, match=named):
+        oo.GraspPlanningSetup(dataclasses.replace(problem, **change))
+
+
+def test_verify_densify_and_reseed_refuse_what_they_cannot_read(default_setup):
+    """Empty or non-finite paths and waypoints, rows outside the path and a seed that is
+    not an integer are ConfigErrors naming the argument (IndexError, ValueError and
+    TypeError before); a path that is not a plan is still a VerifyFailed."""
+    setup = default_setup
+    plan = setup.solve(seed=1)
+    setup.verify(plan.path)
+    assert setup.densify(plan.waypoints).shape[1] == plan.path.shape[1]
+    cases = [
+        (lambda: setup.verify(np.zeros((0, plan.path.shape[1]))), "path"),
+        (lambda: setup.verify(plan.path, rows=[len(plan.path)]), "rows"),
+        (lambda: setup.densify(np.full((2, 7), math.nan)), "waypoints"),
+        (lambda: setup.reseed("a"), "seed"),
+    ]
+    for call, named in cases:
+        with pytest.raises(oo.ConfigError, match=named):
+            call()
+    with pytest.raises(oo.VerifyFailed):
+        setup.verify(plan.path[::-1])
+
+
+def test_start_in_collision_names_the_self_pairs_its_margins_find():
+    """With a padding wide enough to bring the Panda's own links within their margins,
+    the refused start names those pairs (the list was empty: the names were looked up
+    without the margins)."""
+    problem = oo.load_scene(oo.default_scene_path())
+    bare = dataclasses.replace(problem, obstacles=[], object=None)
+    with pytest.raises(oo.InvalidProblem, match=r"in collision: \[\('panda_link"):
+        oo.GraspPlanningSetup(bare, padding=1.0)

@@ -25,6 +25,8 @@ DEMO_SCENES = sorted(
     for path in data_dir("scenes").glob(f"{name}_*.toml")
 )
 SEEDS = range(20)
+#: A grasp pose at the origin with the identity rotation (the problem is only checked).
+IDENTITY = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]
 
 
 @pytest.fixture(scope="module", params=ROBOTS)
@@ -34,7 +36,7 @@ def robot(request: pytest.FixtureRequest) -> oo.Robot:
 
 
 def _free_world(robot: oo.Robot) -> CollisionWorld:
-    problem = oo.Problem(robot, robot.spec.home, np.zeros(7), robot.hand_law(), [], None)
+    problem = oo.Problem(robot, robot.spec.home, IDENTITY, robot.hand_law(), [], None)
     return CollisionWorld(problem, environment=[])
 
 
@@ -179,7 +181,7 @@ def test_padding_grows_environment(write_file: Callable[[str, str], Path]) -> No
     robot = oo.load_robot(write_file("p.toml", text))
     assert robot.spec.padding == 0.05
     ball = oo.Shape("ball", "sphere", np.array([2.0, 0, 0, 0, 0, 0, 1.0]), radius=0.01)
-    problem = oo.Problem(robot, robot.spec.home, np.zeros(7), robot.hand_law(), [ball], None)
+    problem = oo.Problem(robot, robot.spec.home, IDENTITY, robot.hand_law(), [ball], None)
     for padding in (0.0, 0.004):
         world = CollisionWorld(problem, padding=padding)
         grown = world.geometry_model.geometryObjects[-1].geometry

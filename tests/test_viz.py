@@ -177,6 +177,30 @@ def test_storyboard_frames_start_reach_mga_and_end_at_the_grasp(plan_file):
     assert rows == sorted(set(rows))
 
 
+@pytest.mark.parametrize("count", [2, 3])
+def test_storyboard_of_two_or_three_frames(plan_file, count):
+    """The documented minimum of 2 frames shows the start and the grasp (it crashed when
+    the mga row lay inside the path); from 3 on the mga row replaces an inner frame."""
+    scene = PlanScene.from_file(plan_file)
+    assert 0 < scene.mga_row < len(scene.path) - 1
+    rows = frame_rows(scene, count)
+    assert rows[0] == 0 and rows[-1] == len(scene.path) - 1 and len(rows) == count
+    assert (scene.mga_row in rows) is (count > 2)
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [("frames", 1), ("frames", 2.5), ("frames", 10**9), ("dpi", 0), ("panel_size", "a"),
+     ("closeup", "no"), ("mesh_cell", float("nan"))],
+)  # fmt: skip
+def test_bad_storyboard_options_are_named(field, value):
+    """Each StoryboardOptions field is checked where it is given, naming it."""
+    from openup_ompl.viz.storyboard import StoryboardOptions
+
+    with pytest.raises(ou.ConfigError, match=f"storyboard {field}"):
+        StoryboardOptions(**{field: value})
+
+
 def test_law_command_writes_a_png(tmp_path):
     """`law --robot panda --u 0 0.3 1 --out law.png` writes a figure of the law."""
     result = run_cli(

@@ -203,10 +203,21 @@ def _rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def at_estimate(problem: Problem, pose: np.ndarray) -> Problem:
     """The problem as perception reports it: the object at ``pose`` and the grasp pose
-    carried along (``T_grasp' = T_estimate T_nominal^-1 T_grasp``)."""
+    carried along (``T_grasp' = T_estimate T_nominal^-1 T_grasp``).
+
+    Raises:
+        InvalidProblem: The problem has no object.
+        ConfigError: ``pose`` is not ``[x, y, z, qx, qy, qz, qw]`` of finite numbers with a
+            unit quaternion (normalised).
+    """
     shape = problem.object
     if shape is None:
         raise InvalidProblem("the scene has no [object]")
+    try:
+        values = np.array(pose, dtype=float).tolist()
+    except (TypeError, ValueError):
+        values = pose
+    pose = _toml.pose(values, "pose")
     moved = pin.XYZQUATToSE3(pose) * shape.placement.inverse()
     grasp = np.asarray(pin.SE3ToXYZQUAT(moved * problem.grasp), dtype=float)
     raw = {**shape.raw, "pose": [float(x) for x in pose]}
@@ -218,11 +229,16 @@ def perceived_toml(problem: Problem, perception: Perception) -> str:
     """The scene file with ``[object] pose`` at the estimate, ``[grasp] pose`` carried
     along with it (:func:`at_estimate`: the grasp is defined relative to the object) and
     ``[hand] u`` set; a robot named by a relative path is written as an absolute one, so
-    that the file plans from any directory."""
+    that the file plans from any directory.
+
+    Raises:
+        InvalidProblem: The problem has no object or was not loaded from a scene file.
+    """
     from openup_ompl.perception._toml_writer import dumps
     from openup_ompl.robot import available_robots
 
-    assert problem.path is not None
+    if problem.path is None:
+        raise InvalidProblem("the problem was not loaded from a scene file: nothing to rewrite")
     raw = _toml.read_toml(problem.path, "scene file")
     if raw["robot"] not in available_robots():
         raw["robot"] = str(problem.robot.spec.path)
@@ -248,11 +264,14 @@ def write_perception(problem: Problem, perception: Perception, out: str | Path) 
 
     Raises:
         InvalidProblem: ``problem`` has no object (its true pose is written beside the
-            perceived one).
+            perceived one), or was not loaded from a scene file (``perceived.toml`` is
+            that file rewritten).
         ConfigError: ``out`` is an existing file.
     """
     if problem.object is None:
         raise InvalidProblem("the scene has no [object]")
+    if problem.path is None:
+        raise InvalidProblem("the problem was not loaded from a scene file: nothing to rewrite")
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise ConfigError("out", str(out), "a directory (this is a file)")

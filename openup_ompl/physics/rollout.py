@@ -25,6 +25,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -32,13 +33,15 @@ from typing import Any
 
 import numpy as np
 
+from openup_ompl._toml import is_integer
 from openup_ompl.exceptions import ConfigError, OpenUpError, SimulationDiverged
+from openup_ompl.executor import SEED_LIMIT
 from openup_ompl.grasp import closing_limits
 from openup_ompl.physics.options import PHASE_MAX, PhysicsOptions
 from openup_ompl.physics.record import ExecutionRecord
 from openup_ompl.physics.trajectory import time_path
 from openup_ompl.physics.world import OBJECT, OBSTACLE, ROBOT, World, build_world
-from openup_ompl.plan import PlanFile
+from openup_ompl.plan import Plan, PlanFile
 
 __all__ = ["Rollout", "check_offset", "closed_targets", "execute_plan", "lift_rows"]
 
@@ -198,8 +201,9 @@ class Rollout:
     runs every offset of a plan through one :class:`Rollout`.
 
     Args:
-        plan: The plan, as read (:meth:`~openup_ompl.plan.PlanFile.read`), or a plan
-            file's contents (checked here as ``show`` checks them).
+        plan: The plan (:meth:`~openup_ompl.GraspPlanningSetup.solve`'s), as read
+            (:meth:`~openup_ompl.plan.PlanFile.read`), or a plan file's contents (checked
+            here as ``show`` checks them).
         options: Physics settings.
 
     Raises:
@@ -209,12 +213,16 @@ class Rollout:
     """
 
     def __init__(
-        self, plan: PlanFile | dict[str, Any], options: PhysicsOptions | None = None
+        self, plan: Plan | PlanFile | dict[str, Any], options: PhysicsOptions | None = None
     ) -> None:
         import mujoco
 
-        if not isinstance(plan, PlanFile):
+        if isinstance(plan, Plan):
+            plan = PlanFile.from_plan(plan)
+        elif not isinstance(plan, PlanFile):
             plan = PlanFile.from_dict(plan, where="plan ")
+        if options is not None and not isinstance(options, PhysicsOptions):
+            raise ConfigError("options", options, "PhysicsOptions or None")
         self.plan = plan
         self.options = options or PhysicsOptions()
         self.data = data = plan.contents
@@ -274,6 +282,8 @@ class Rollout:
         import mujoco
 
         dx, dy, yaw = check_offset(offset)
+        if not (is_integer(seed) and 0 <= seed < SEED_LIMIT):
+            raise ConfigError("seed", seed, "an integer seed in [0, 2^31)")
         messages: list[str] = []
         previous = mujoco.get_mju_user_warning()
         mujoco.set_mju_user_warning(messages.append)
@@ -593,15 +603,16 @@ class Rollout:
 
 
 def execute_plan(
-    plan: str | Path | PlanFile | dict[str, Any],
+    plan: str | Path | Plan | PlanFile | dict[str, Any],
     offset: Sequence[float] = (0.0, 0.0, 0.0),
     *,
     seed: int = 0,
     options: PhysicsOptions | None = None,
     frames: bool = True,
 ) -> ExecutionRecord:
-    """Execute a plan file (or the plan read, or its contents) in physics with the object
-    displaced by ``offset = (dx, dy, yaw)`` [m, m, rad] (module docstring).
+    """Execute a plan file (or a plan, the plan read, or its contents) in physics with the
+    object displaced by ``offset = (dx, dy, yaw)`` [m, m, rad] (module docstring);
+    ``seed`` draws the object's jitter (``PhysicsOptions.object_jitter``).
 
     Raises:
         ConfigError: A non-finite offset; a file that is not ``openup-plan/1`` or fails
@@ -611,7 +622,7 @@ def execute_plan(
         SimulationDiverged: MuJoCo went unstable (then no verdict is given).
     """
     check_offset(offset)
-    if not isinstance(plan, (PlanFile, dict)):
+    if isinstance(plan, (str, os.PathLike)):
         path = Path(plan)
         plan = PlanFile.read(path)
         if plan.object is None:

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from openup_ompl._toml import is_finite, is_integer
 from openup_ompl.exceptions import ConfigError
 from openup_ompl.scene import Shape
 from openup_ompl.viz._geometry import Mesh, coal_mesh, decimate, placed, shape_mesh
@@ -31,19 +32,23 @@ PATH_COLOR = (0.12, 0.47, 0.71)
 GRASP_COLOR = (0.84, 0.15, 0.16)
 
 
+#: The most instants a storyboard shows (one panel each).
+MAX_FRAMES = 24
+
+
 @dataclass(frozen=True)
 class StoryboardOptions:
     """How a storyboard is drawn.
 
     Attributes:
-        frames: Number of instants shown (at least 2: the start and the grasp; the first
-            instant at or below ``mga`` is always among them).
+        frames: Number of instants shown, 2 to :data:`MAX_FRAMES` (the start and the
+            grasp; from 3 on, the first instant at or below ``mga`` is among them).
         closeup: Add the row of hand close-ups.
         geometry: ``"visual"`` (the URDF's visual meshes, decimated to ``mesh_cell``) or
             ``"collision"`` (the collision geometry, as loaded).
         mesh_cell: Vertex-clustering cell of the visual meshes [m].
         panel_size: Width of one panel [inch].
-        dpi: Resolution of the PNG [dot/inch].
+        dpi: Resolution of the PNG [dot/inch], 1 to 1200.
     """
 
     frames: int = 6
@@ -56,10 +61,15 @@ class StoryboardOptions:
     def __post_init__(self) -> None:
         if self.geometry not in ("visual", "collision"):
             raise ConfigError("storyboard geometry", self.geometry, "'visual' or 'collision'")
-        if self.frames < 2:
-            raise ConfigError("storyboard frames", self.frames, "at least 2")
-        if not self.mesh_cell > 0:
-            raise ConfigError("storyboard mesh_cell", self.mesh_cell, "a positive size [m]")
+        if not (is_integer(self.frames) and 2 <= self.frames <= MAX_FRAMES):
+            raise ConfigError("storyboard frames", self.frames, f"an integer in [2, {MAX_FRAMES}]")
+        if not isinstance(self.closeup, bool):
+            raise ConfigError("storyboard closeup", self.closeup, "true or false")
+        for name in ("mesh_cell", "panel_size"):
+            if not (is_finite(getattr(self, name)) and getattr(self, name) > 0):
+                raise ConfigError(f"storyboard {name}", getattr(self, name), "a positive size")
+        if not (is_integer(self.dpi) and 1 <= self.dpi <= 1200):
+            raise ConfigError("storyboard dpi", self.dpi, "an integer in [1, 1200]")
 
 
 def frame_rows(scene: PlanScene, count: int) -> list[int]:
@@ -69,7 +79,8 @@ def frame_rows(scene: PlanScene, count: int) -> list[int]:
     targets = np.linspace(0.0, 1.0, count)
     rows = [int(np.argmin(np.abs(scene.progress - t))) for t in targets]
     mga = scene.mga_row
-    if mga is not None and 0 < mga < len(scene.path) - 1 and mga not in rows:
+    # With only the two ends shown there is no inner frame to give to the mga row.
+    if mga is not None and 0 < mga < len(scene.path) - 1 and mga not in rows and count > 2:
         inner = range(1, count - 1)
         nearest = min(inner, key=lambda i: abs(scene.progress[rows[i]] - scene.progress[mga]))
         rows[nearest] = mga
