@@ -330,4 +330,26 @@ def test_write_perception_takes_a_str_and_refuses_a_file(lwa3_can, lwa3_camera, 
     bare = dataclasses.replace(lwa3_can, object=None)
     with pytest.raises(ou.InvalidProblem, match="no \\[object\\]"):
         write_perception(bare, perception, tmp_path / "bare")
+    in_code = dataclasses.replace(lwa3_can, path=None)
+    with pytest.raises(ou.InvalidProblem, match="not loaded from a scene file"):
+        write_perception(in_code, perception, tmp_path / "bare")
     assert not (tmp_path / "bare").exists()
+
+
+def test_perceive_reads_the_scene_camera_as_the_command_does():
+    """``perceive(problem)`` looks through the scene file's ``[camera]`` (the Panda's
+    can scene sets one: at the default camera the can showed too few points), and
+    ``at_estimate`` refuses a pose the plan file would refuse later."""
+    from openup_ompl.perception.camera import camera_of_scene
+    from openup_ompl.perception.cli import scene_camera
+    from openup_ompl.perception.perceive import at_estimate
+
+    problem = ou.load_scene(ROOT / "scenes" / "panda_can.toml")
+    assert camera_of_scene(problem) == scene_camera(problem, []) != CameraOptions()
+    perception = perceive(problem)
+    assert 0.0 <= perception.u <= 1.0
+    moved = at_estimate(problem, perception.pose)
+    assert moved.object is not None and moved.grasp_pose.shape == (7,)
+    for pose in ([0.6, 0.0, 0.2, 0.0, 0.0, 0.0, 2.0], [math.nan] * 7, [0.0] * 3):
+        with pytest.raises(ConfigError, match="^pose"):
+            at_estimate(problem, np.array(pose))

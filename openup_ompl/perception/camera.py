@@ -164,6 +164,21 @@ class CameraOptions:
         return position, target
 
 
+def camera_of_scene(problem: Problem, overrides: Mapping[str, Any] | None = None) -> CameraOptions:
+    """The camera of the problem's scene file (its ``[camera]`` table; the defaults for
+    a problem without one, or built in code), with ``overrides`` (the same keys) on top.
+
+    Raises:
+        ConfigError: A ``[camera]`` that is not a table, or a bad key or value.
+    """
+    table: Any = {}
+    if problem.path is not None:
+        table = _toml.read_toml(problem.path, "scene file").get("camera", {})
+        if not isinstance(table, dict):
+            raise ConfigError(f"{problem.path.name}: camera", table, "a [camera] table")
+    return CameraOptions.from_table({**table, **(overrides or {})})
+
+
 def camera_rotation(position: np.ndarray, target: np.ndarray) -> np.ndarray:
     """World rotation of the camera frame (columns: x right, y down, z forward)."""
     forward = (target - position) / np.linalg.norm(target - position)

@@ -13,7 +13,7 @@ import numpy as np
 
 from openup_ompl import _toml
 from openup_ompl.exceptions import ConfigError, MissingExtra
-from openup_ompl.perception.camera import CameraOptions
+from openup_ompl.perception.camera import CameraOptions, camera_of_scene
 from openup_ompl.scene import Problem, load_scene
 
 __all__ = ["camera_pairs", "closed_loop_command", "perceive_command", "scene_camera"]
@@ -37,11 +37,7 @@ def camera_pairs(pairs: Sequence[str]) -> dict[str, Any]:
 def scene_camera(problem: Problem, pairs: Sequence[str]) -> CameraOptions:
     """The camera of a scene file's ``[camera]`` table, overridden by ``--camera``
     ``KEY=VALUE`` pairs."""
-    assert problem.path is not None
-    table = _toml.read_toml(problem.path, "scene file").get("camera", {})
-    if not isinstance(table, dict):
-        raise ConfigError(f"{problem.path.name}: camera", table, "a [camera] table")
-    return CameraOptions.from_table({**table, **camera_pairs(pairs)})
+    return camera_of_scene(problem, camera_pairs(pairs))
 
 
 def perceive_command(args: argparse.Namespace) -> int:

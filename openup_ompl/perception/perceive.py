@@ -20,7 +20,12 @@ import pinocchio as pin
 from openup_ompl import _toml
 from openup_ompl._io import write_atomic
 from openup_ompl.exceptions import ConfigError, InvalidProblem, ObjectNotVisible, TooFewPoints
-from openup_ompl.perception.camera import CameraOptions, DepthCamera, DepthView
+from openup_ompl.perception.camera import (
+    CameraOptions,
+    DepthCamera,
+    DepthView,
+    camera_of_scene,
+)
 from openup_ompl.perception.noise import NoiseOptions, PointCloud, noisy_cloud, normal_sigma
 from openup_ompl.perception.superquadric import (
     N_PARAMETERS,
@@ -116,7 +121,9 @@ def perceive(
 
     Args:
         problem: The scene; its object is where it truly is.
-        camera: Camera options (ignored if ``depth_camera`` is given).
+        camera: Camera options (ignored if ``depth_camera`` is given); ``None``: the
+            scene file's ``[camera]`` table, as ``openup-ompl perceive`` reads it
+            (:func:`~openup_ompl.perception.camera.camera_of_scene`).
         noise: Sensor noise model.
         fit: Superquadric fit options.
         rng: The noise's random generator (default: seed 0).
@@ -130,6 +137,8 @@ def perceive(
     """
     noise = noise or NoiseOptions()
     rng = rng if rng is not None else np.random.default_rng(0)
+    if depth_camera is None and camera is None:
+        camera = camera_of_scene(problem)
     cam = depth_camera or DepthCamera(problem, camera)
     view = cam.render()
     cloud = noisy_cloud(view, noise, rng)
