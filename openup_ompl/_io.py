@@ -20,14 +20,28 @@ def _umask() -> int:
     return mask
 
 
+def make_dir(path: Path) -> Path:
+    """Create the directory ``path`` and its parents if missing; returns ``path``.
+
+    Raises:
+        ConfigError: ``path`` or one of its parents is a file.
+    """
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except (FileExistsError, NotADirectoryError):
+        file = next((p for p in (path, *path.parents) if p.exists() and not p.is_dir()), path)
+        raise ConfigError("directory", str(path), f"a directory ({file} is a file)") from None
+    return path
+
+
 def write_atomic(path: str | Path, text: str) -> Path:
     """Write ``text`` to ``path`` through a temporary file in the same directory and
     ``os.replace``: the file is either absent, the old one, or complete; the temporary file
     never survives a failure. The file gets the mode ``open`` would give a new one
     (``0o666`` less the umask: shared plan files stay readable), not the temporary file's
-    ``0o600``. Creates the parent directory. Returns ``path``."""
+    ``0o600``. Creates the parent directory (:func:`make_dir`). Returns ``path``."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    make_dir(path.parent)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
         os.fchmod(fd, 0o666 & ~_umask())

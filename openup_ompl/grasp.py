@@ -72,7 +72,9 @@ class ClosingOptions:
             (and never inside it).
         min_step: Smallest step, as a fraction of each joint's range: sliding contacts,
             for which conservative advancement alone would crawl, still converge.
-        max_steps: Rounds of distance queries at most (bisection rounds included).
+        max_steps: Rounds of distance queries after which the closing stops (counted
+            with the bisection's, checked between steps: the step under way, and its
+            bisection, may add a few).
     """
 
     tolerance: float = 0.5e-3  # [m]

@@ -187,6 +187,14 @@ def test_too_few_points(lwa3_can: ou.Problem) -> None:
         fit_superquadric(np.zeros((5, 3)))
 
 
+@pytest.mark.parametrize("points", [np.zeros((100, 2)), np.zeros(100), np.zeros((4, 25, 3))])
+def test_cloud_of_another_shape_is_named_by_its_shape(points: np.ndarray) -> None:
+    """Rows that are not [x, y, z] are a ConfigError giving the shape (it was
+    TooFewPoints: '100 points, expected at least 22')."""
+    with pytest.raises(ConfigError, match=r"points: got 'an array of shape \("):
+        fit_superquadric(points)
+
+
 @pytest.mark.parametrize(
     "points",
     [np.zeros((50, 3)), np.outer(np.linspace(0.0, 0.1, 50), [1.0, 0.5, 0.0])],

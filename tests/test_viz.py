@@ -307,3 +307,25 @@ def test_decimated_mesh_keeps_the_silhouette():
     assert len(coarse_faces) < len(faces) / 4
     radius = np.linalg.norm(coarse[:, :2], axis=1)
     assert np.all(np.abs(radius - 0.05) < 0.01 * np.sqrt(3))
+
+
+def test_show_refuses_what_it_cannot_draw_or_write(plan_file, tmp_path):
+    """``show`` of a Plan object (it takes a file), an output directory that is a file,
+    or options of another type: a ConfigError before anything is written (a TypeError,
+    FileExistsError or AttributeError before)."""
+    from openup_ompl.viz import show
+
+    (tmp_path / "afile").write_text("")
+    plan = ou.GraspPlanningSetup(ou.load_scene(ou.default_scene_path())).solve(seed=1)
+    cases = [
+        ({"plan": plan}, "plan: got 'Plan'"),
+        ({"plan": plan_file, "out_dir": tmp_path / "afile"}, "afile is a file"),
+        ({"plan": plan_file, "out_dir": tmp_path, "html": "x"}, "html"),
+        ({"plan": plan_file, "out_dir": tmp_path, "storyboard": "x"}, "storyboard"),
+    ]
+    for kwargs, named in cases:
+        with pytest.raises(ou.ConfigError, match=named):
+            show(**kwargs)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]
+    with pytest.raises(ou.ConfigError, match="afile is a file"):
+        plan.save(tmp_path / "afile" / "plan.json")

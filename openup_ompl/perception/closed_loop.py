@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from openup_ompl._io import make_dir
 from openup_ompl.exceptions import ConfigError, InvalidProblem, PerceptionError, PlanningFailed
 from openup_ompl.perception.camera import CameraOptions, DepthCamera
 from openup_ompl.perception.noise import NoiseOptions
@@ -246,7 +247,7 @@ def _decimals(value: float | None, digits: int) -> str:
 def write_csv(rows: Sequence[dict[str, Any]], path: Path) -> Path:
     """The experiment's CSV: :data:`CSV_COLUMNS`, one row per cell (an unknown mean left
     empty)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
+    make_dir(path.parent)
     with path.open("w", newline="") as handle:
         writer = csv.DictWriter(handle, fieldnames=list(CSV_COLUMNS))
         writer.writeheader()

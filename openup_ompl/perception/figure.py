@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from openup_ompl._io import make_dir
 from openup_ompl.perception.perceive import Perception
 from openup_ompl.perception.superquadric import Superquadric
 from openup_ompl.scene import Shape
@@ -101,7 +102,7 @@ def plot_perception(perception: Perception, truth: Shape, out: Path, title: str 
     top.legend(fontsize=8)
     fig.suptitle(title or f"u = {perception.u:.3f}, {perception.fit.points} points")
     fig.tight_layout()
-    out.parent.mkdir(parents=True, exist_ok=True)
+    make_dir(out.parent)
     fig.savefig(out, dpi=110)
     plt.close(fig)
     return out
@@ -134,7 +135,7 @@ def plot_closed_loop(rows: Sequence[dict[str, Any]], out: Path, title: str = "")
     if title:
         fig.suptitle(title)
     fig.tight_layout()
-    out.parent.mkdir(parents=True, exist_ok=True)
+    make_dir(out.parent)
     fig.savefig(out, dpi=110)
     plt.close(fig)
     return out

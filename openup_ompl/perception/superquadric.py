@@ -470,14 +470,18 @@ def fit_superquadric(
     Raises:
         TooFewPoints: Fewer points than twice the 11 parameters (fewer than 11 leaves the
             fit undetermined; a few more than 11 leave ``s^2`` meaningless).
+        ConfigError: ``points`` not of shape ``(N, 3)``, or not finite, or at one place or
+            on one line.
     """
     from scipy.optimize import least_squares
 
     options = options or FitOptions()
     points = np.asarray(points, dtype=float)
     needed = 2 * N_PARAMETERS
-    if points.ndim != 2 or points.shape[1] != 3 or points.shape[0] < needed:
-        raise TooFewPoints(int(points.shape[0]) if points.ndim == 2 else 0, needed)
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise ConfigError("points", f"an array of shape {points.shape}", "(N, 3) rows [x, y, z]")
+    if points.shape[0] < needed:
+        raise TooFewPoints(int(points.shape[0]), needed)
     if not np.all(np.isfinite(points)):
         raise ConfigError("points", "non-finite values", "finite [x, y, z] rows [m]")
     # Points at one place or on one line leave the surface undetermined, and the fit

@@ -8,9 +8,12 @@ when a picture is made; a missing one raises :class:`~openup_ompl.exceptions.Mis
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
+from openup_ompl._io import make_dir
+from openup_ompl.exceptions import ConfigError
 from openup_ompl.viz._mpl import _pyplot
 from openup_ompl.viz._scene import PlanScene
 from openup_ompl.viz.html import HtmlOptions, _meshcat, write_html
@@ -43,16 +46,24 @@ def show(
     ``<stem>_hand_law.png`` in ``out_dir`` (default: the plan file's directory).
 
     Raises:
-        ConfigError: The file is not a readable plan, or its URDF or meshes cannot be
-            loaded.
+        ConfigError: ``plan`` is not a path (draw a :class:`~openup_ompl.Plan` in memory
+            with :meth:`PlanScene.from_plan` and the writers), the file is not a readable
+            plan, its URDF or meshes cannot be loaded, ``out_dir`` is a file, or the
+            options are of another type.
         MissingExtra: matplotlib or meshcat is not installed.
     """
+    if not isinstance(plan, (str, os.PathLike)):
+        raise ConfigError("plan", type(plan).__name__, "a plan file's path")
+    if html is not None and not isinstance(html, HtmlOptions):
+        raise ConfigError("html", html, "HtmlOptions or None")
+    if storyboard is not None and not isinstance(storyboard, StoryboardOptions):
+        raise ConfigError("storyboard", storyboard, "StoryboardOptions or None")
     # A missing extra is reported before anything is written.
     _pyplot()
     _meshcat()
     plan = Path(plan)
     scene = PlanScene.from_file(plan)
-    out = Path(out_dir) if out_dir is not None else plan.parent
+    out = make_dir(Path(out_dir) if out_dir is not None else plan.parent)
     stem = plan.stem
     # The storyboard loads the robot's meshes first: a missing one fails with no file written.
     board = write_storyboard(scene, out / f"{stem}_storyboard.png", storyboard)

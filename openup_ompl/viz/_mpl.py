@@ -10,6 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from openup_ompl._io import make_dir
 from openup_ompl.exceptions import MissingExtra
 
 
@@ -30,7 +31,7 @@ def _save(fig: Any, out: str | Path, dpi: int) -> Path:
     not."""
     out = Path(out)
     try:
-        out.parent.mkdir(parents=True, exist_ok=True)
+        make_dir(out.parent)
         fig.savefig(out, dpi=dpi)
     finally:
         _pyplot().close(fig)

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from openup_ompl._io import make_dir
 from openup_ompl._toml import is_finite
 from openup_ompl.exceptions import ConfigError, MissingExtra
 from openup_ompl.viz._scene import PlanScene
@@ -285,7 +286,7 @@ def write_html(
         .replace("%INFO%", json.dumps(info).replace("</", "<\\/"))
     )
     out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
+    make_dir(out.parent)
     out.write_text(page, encoding="utf-8")
     return out
 
