@@ -293,7 +293,10 @@ def build_parser() -> argparse.ArgumentParser:
         "--out", type=_out_path, default=Path("openup-benchmark"), help="output directory"
     )
     bench.add_argument(
-        "--workers", type=_count, default=None, help="local task processes at a time"
+        "--workers",
+        type=_count,
+        default=None,
+        help="local task processes at a time (default: the usable cores)",
     )
     bench.add_argument(
         "--scheduler",
@@ -389,7 +392,10 @@ def build_parser() -> argparse.ArgumentParser:
         "--out", type=_out_path, default=Path("openup-robustness"), help="output directory"
     )
     robust.add_argument(
-        "--workers", type=_count, default=None, help="local task processes at a time"
+        "--workers",
+        type=_count,
+        default=None,
+        help="local task processes at a time (default: the usable cores)",
     )
     robust.add_argument(
         "--scheduler",

@@ -534,7 +534,10 @@ def run_robustness(
         print(f"no plot: {error}", file=sys.stderr)
         plot = None
     grasps = None
-    if plot is not None and options.execute == "kinematic":
+    if options.execute != "kinematic":
+        # A kinematic run's Fig. 1 left in ``out`` would sit beside other trials' results.
+        (out / "grasps.png").unlink(missing_ok=True)
+    elif plot is not None:
         figure = figure_trials(problem, options, torsion)
         if figure is not None:
             grasps = write_grasp_figure(figure[0], figure[1], out / "grasps.png")

@@ -49,7 +49,11 @@ def markdown_tables(rows: Sequence[dict[str, Any]]) -> str:
     head = "| u | " + " | ".join(f"{m * 100:g} cm" for m in magnitudes) + " |"
     rule = "|---:|" + "---:|" * len(magnitudes)
     pooled = _grouped(rows, by_direction=False)
-    lines = ["Success (directions pooled): successes / trials", "", head, rule]
+    yaws = sorted({float(row.get("yaw", 0.0)) for row in rows})
+    # The tables pool every yaw of a cell (the CSV keeps them apart): say so when several.
+    note = "" if len(yaws) < 2 else f"yaws {', '.join(f'{y:g}' for y in yaws)} rad pooled"
+    also = f"; {note}" if note else ""
+    lines = [f"Success (directions pooled{also}): successes / trials", "", head, rule]
     for u in us:
         cells = [pooled.get((u, "all", m)) for m in magnitudes]
         lines.append(
@@ -59,7 +63,11 @@ def markdown_tables(rows: Sequence[dict[str, Any]]) -> str:
     directions = [d for d in ("+x", "-x", "+y", "-y") if any(k[1] == d for k in by_direction)]
     if directions:
         moved = [m for m in magnitudes if m > 0]
-        lines += ["", "Success per direction of the error: successes / trials", ""]
+        lines += [
+            "",
+            f"Success per direction of the error{f' ({note})' if note else ''}: successes / trials",
+            "",
+        ]
         lines.append("| u | error | " + " | ".join(f"{m * 100:g} cm" for m in moved) + " |")
         lines.append("|---:|:---|" + "---:|" * len(moved))
         for u in us:

@@ -361,3 +361,22 @@ def test_perceive_reads_the_scene_camera_as_the_command_does():
     for pose in ([0.6, 0.0, 0.2, 0.0, 0.0, 0.0, 2.0], [math.nan] * 7, [0.0] * 3):
         with pytest.raises(ConfigError, match="^pose"):
             at_estimate(problem, np.array(pose))
+
+
+@pytest.mark.parametrize(
+    ("changes", "named"),
+    [
+        ({"policies": ("0", "0.0")}, "policies"),
+        ({"noises": (1.0, 1.0)}, "noises"),
+        ({"distances": (0.6, 0.6)}, "distances"),
+        ({"camera": CameraOptions(position=(1.2, -0.2, 0.6))}, "distances"),
+    ],
+)
+def test_closed_loop_sweep_refuses_values_it_would_count_twice(changes, named):
+    """A policy, noise or distance given twice (the same views counted twice in one row),
+    or several distances with a fixed camera position (every distance the same view)."""
+    from openup_ompl.perception.closed_loop import ClosedLoopOptions
+
+    with pytest.raises(ConfigError, match=f"^{named}"):
+        ClosedLoopOptions(**changes)
+    ClosedLoopOptions(camera=CameraOptions(position=(1.2, -0.2, 0.6)), distances=(0.8,))

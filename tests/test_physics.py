@@ -264,7 +264,9 @@ def test_rollout_frames_follow_the_phases(panda_plan):
 
 def test_physics_sweep_adds_touched_and_moved_mm(tmp_path):
     """``robustness --execute physics`` writes the kinematic columns plus touched and
-    moved_mm, and keeps each trial's execution record."""
+    moved_mm, and keeps each trial's execution record; a kinematic run's grasps.png left
+    in the directory (it would describe other trials) is removed."""
+    (tmp_path / "grasps.png").write_bytes(b"a kinematic run's figure")
     result = _cli("robustness", "--execute", "physics", "--scene", str(SCENES / "panda_can.toml"),
                   "--u", "0.3", "--delta", "0", "0.02", "--seeds", "1", "--workers", "1",
                   "--quiet", "--out", str(tmp_path))  # fmt: skip
@@ -276,6 +278,7 @@ def test_physics_sweep_adds_touched_and_moved_mm(tmp_path):
     assert {"touched", "moved_mm"} <= set(rows[0])
     trials = json.loads((tmp_path / "trials.json").read_text())[0]["trials"]
     assert all("verdict" in t and "first_contact" in t for t in trials)
+    assert not (tmp_path / "grasps.png").exists()
 
 
 @pytest.mark.parametrize("jacobian", ["mjJAC_DENSE", "mjJAC_SPARSE"])

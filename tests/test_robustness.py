@@ -166,3 +166,15 @@ def test_scene_without_object_is_refused(tmp_path: Path, empty_scene_text: str) 
     result = run_cli("robustness", "--delta", "0", "-0.01", cwd=tmp_path)
     assert_one_error_line(result)
     assert result.returncode == 2 and "delta" in result.stderr
+
+
+def test_tables_say_when_they_pool_several_yaws():
+    """With more than one yaw swept, both tables say the yaws are pooled (the CSV keeps
+    them apart); with one, they say nothing of it."""
+    from openup_ompl.robustness_report import markdown_tables
+
+    row = {"u": 0.3, "dx": 0.01, "dy": 0.0, "trials": 1, "successes": 1}
+    one = markdown_tables([{**row, "yaw": 0.0}])
+    two = markdown_tables([{**row, "yaw": 0.0}, {**row, "yaw": 0.1, "successes": 0}])
+    assert "yaws" not in one
+    assert two.count("yaws 0, 0.1 rad pooled") == 2 and "| 0.3 | 1/2 |" in two

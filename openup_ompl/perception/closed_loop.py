@@ -75,14 +75,17 @@ class ClosedLoopOptions:
     """The experiment's sweep.
 
     Attributes:
-        policies: ``u`` values in [0, 1] (as text, e.g. ``"0.3"``) and/or ``"covariance"``.
-        noises: Sensor noise scales (:class:`NoiseOptions` ``scale``).
-        distances: Camera distances [m] to the object (the default camera pose otherwise).
+        policies: ``u`` values in [0, 1] (as text, e.g. ``"0.3"``) and/or ``"covariance"``,
+            distinct.
+        noises: Sensor noise scales (:class:`NoiseOptions` ``scale``), distinct.
+        distances: Camera distances [m] to the object (the default camera pose
+            otherwise), distinct.
         trials: Views (seeds) per noise and distance.
         first_seed: Seed of trial 0 (trial ``i``: ``first_seed + i``), for noise and plan.
         planner: Planner name.
         time_limit: Planning time limit [s].
-        camera: Other camera options (``distance`` is swept).
+        camera: Other camera options (``distance`` is swept; with an explicit
+            ``position`` there is one view, and ``distances`` must hold one value).
     """
 
     policies: tuple[str, ...] = ("0", "0.3", "1", "covariance")
@@ -99,6 +102,7 @@ class ClosedLoopOptions:
             value = getattr(self, name)
             if isinstance(value, (str, bytes)) or not value:
                 raise ConfigError(name, value, "a non-empty list")
+        keys: list[object] = []
         for policy in self.policies:
             if policy != "covariance":
                 try:
@@ -107,6 +111,24 @@ class ClosedLoopOptions:
                     value = math.nan
                 if not 0 <= value <= 1:
                     raise ConfigError("policy", policy, "a u in [0, 1] or 'covariance'")
+                keys.append(value)
+            else:
+                keys.append(policy)
+        # A value given twice would count the same views twice in its row.
+        for name, values in (
+            ("policies", keys),
+            ("noises", list(self.noises)),
+            ("distances", list(self.distances)),
+        ):
+            if len(set(values)) != len(values):
+                raise ConfigError(name, list(getattr(self, name)), "distinct values")
+        if self.camera.position is not None and len(self.distances) > 1:
+            raise ConfigError(
+                "distances",
+                list(self.distances),
+                "one distance with an explicit camera position (it is not used: every "
+                "distance would be the same view)",
+            )
         check_seeds(self.first_seed, self.trials, MAX_TRIALS, "trials")
         for name in ("first_seed", "trials"):  # numpy integers accepted, stored as int
             object.__setattr__(self, name, int(getattr(self, name)))
