@@ -87,6 +87,8 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=5, help="closings per solution")
     parser.add_argument("--json", default=None, help="also write the results here")
     args = parser.parse_args()
+    if args.solutions < 1 or args.repeats < 1:
+        parser.error("--solutions and --repeats must be >= 1")
     rows = [measure(scene, args.solutions, args.repeats) for scene in SCENES]
     info = _common.machine_info()
     print(_common.machine_line(info))

@@ -90,6 +90,11 @@ def main() -> int:
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--json", default=None, help="write the results to this JSON file")
     args = parser.parse_args()
+    if args.restarts < 1:
+        parser.error("--restarts must be >= 1")
+    missing = [str(s) for s in args.scenes if not Path(s).is_file()]
+    if missing:
+        parser.error(f"--scenes: no such file {missing[0]}")
     info = _common.machine_info()
     rows = []
     for scene in args.scenes:

@@ -79,11 +79,22 @@ def measure(scene: Path, trials: int, workers: int) -> dict[str, object]:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--scenes", type=Path, nargs="+", default=DEFAULT_SCENES)
+    parser.add_argument(
+        "--scenes",
+        type=Path,
+        nargs="+",
+        default=DEFAULT_SCENES,
+        help="scene files (default: every robot's demo scene, scenes/*_can.toml)",
+    )
     parser.add_argument("--trials", type=int, default=21, help="trials per scene and kind")
     parser.add_argument("--workers", type=int, default=2, help="processes of the projection")
     parser.add_argument("--json", default=None, help="write the results to this JSON file")
     args = parser.parse_args()
+    missing = [str(s) for s in args.scenes if not s.is_file()]
+    if missing:
+        parser.error(f"--scenes: no such file {missing[0]} (give scene files' paths)")
+    if args.trials < 1 or args.workers < 1:
+        parser.error("--trials and --workers must be >= 1")
     from ompl import util as ompl_util
 
     ompl_util.RNG.setSeed(1)

@@ -190,6 +190,8 @@ def main() -> None:
     if unknown:
         parser.error(f"unknown planners {unknown}: expected some of {list(openup_ompl.PLANNERS)}")
     fixed_hand = None if args.fixed_hand.lower() == "none" else args.fixed_hand
+    if fixed_hand not in (None, "c", "b", "w"):
+        parser.error(f"--fixed-hand: got {args.fixed_hand!r}, expected c, b, w or none")
 
     ou.RNG.setSeed(args.ompl_seed)
     ou.setLogLevel(ou.LOG_ERROR)

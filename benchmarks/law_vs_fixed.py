@@ -64,6 +64,8 @@ def main() -> None:
     parser.add_argument("summary", type=Path, help="summary.json of a --fixed-hand benchmark")
     parser.add_argument("--table", action="store_true", help="also print the per-problem table")
     args = parser.parse_args()
+    if not args.summary.is_file():
+        parser.error(f"no such file: {args.summary}")
     rows = json.loads(args.summary.read_text())["rows"]
     cells: dict[tuple[str, str], dict[str, float]] = defaultdict(dict)
     for row in rows:
