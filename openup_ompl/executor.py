@@ -36,7 +36,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from openup_ompl._io import write_atomic
+from openup_ompl._io import make_dir, write_atomic
 from openup_ompl._toml import is_integer
 from openup_ompl.exceptions import ConfigError, MissingExtra, SweepFailed
 
@@ -223,7 +223,7 @@ def run_tasks(
     if not (is_integer(retries) and retries >= 0):
         raise ConfigError("retries", retries, "0 or more")
     shards = Path(shards)
-    shards.mkdir(parents=True, exist_ok=True)
+    make_dir(shards)
     todo = [t for t in tasks if not shard_path(shards, t.key).exists()]
     if not todo:
         return []

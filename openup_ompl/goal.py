@@ -31,6 +31,9 @@ PREGRASP_STEP = 0.025
 #: an IK solve and a motion check, and a retreat of 0.1 m in micrometre steps would not
 #: end.
 MIN_RETREAT_STEP = 1e-3
+#: The longest retreat (and pregrasp distance) accepted [m]: past a metre the palm has
+#: left the grasp's neighbourhood, and a retreat is no longer an approach.
+MAX_RETREAT = 1.0
 
 
 class GraspGoal:
@@ -66,8 +69,15 @@ class GraspGoal:
         return self.ik.calls
 
     def sample(self, max_restarts: int | None = None) -> np.ndarray | None:
-        """A new collision-free IK solution (random restarts), or ``None``."""
-        restarts = max_restarts or self.ik.options.max_restarts
+        """A new collision-free IK solution (``max_restarts`` random restarts at most,
+        ``None``: the IK options'), or ``None``.
+
+        Raises:
+            ConfigError: ``max_restarts`` is not an integer >= 1 (or ``None``).
+        """
+        if max_restarts is not None and not (_toml.is_integer(max_restarts) and max_restarts >= 1):
+            raise ConfigError("max_restarts", max_restarts, "an integer >= 1 or None")
+        restarts = self.ik.options.max_restarts if max_restarts is None else max_restarts
         for _ in range(restarts):
             arm = self.ik.refine(self.ik.random_arm(self.rng))
             if arm is None:
@@ -112,7 +122,17 @@ class GraspGoal:
         Returns:
             The configurations from ``root`` (first) to the retreat's end (last); only
             ``root`` when no step was free. Read backwards, a certified straight approach.
+
+        Raises:
+            ConfigError: ``length`` not in ``[0, MAX_RETREAT]``, ``step`` below
+                :data:`MIN_RETREAT_STEP` or not finite, ``max_joint_step`` not positive.
         """
+        if not (_toml.is_finite(length) and 0 <= length <= MAX_RETREAT):
+            raise ConfigError("length", length, f"a retreat length in [0, {MAX_RETREAT:g}] m")
+        if not (_toml.is_finite(step) and step >= MIN_RETREAT_STEP):
+            raise ConfigError("step", step, f"a finite step >= {MIN_RETREAT_STEP:g} m")
+        if not (_toml.is_finite(max_joint_step) and max_joint_step > 0):
+            raise ConfigError("max_joint_step", max_joint_step, "a positive step [rad]")
         offset = -step * self.checker.robot.spec.approach
         chain = [root]
         q = root
@@ -173,7 +193,7 @@ class IKGoalRegion(ob.GoalSampleableRegion):
         max_joint_step: Arm motion [rad, Euclidean norm] one retreat step may not exceed.
 
     Raises:
-        ConfigError: A negative or non-finite ``pregrasp``, a ``pregrasp_step`` under
+        ConfigError: A ``pregrasp`` outside ``[0, MAX_RETREAT]``, a ``pregrasp_step`` under
             :data:`MIN_RETREAT_STEP`, a non-positive ``max_joint_step``, or
             ``max_samples`` not an integer in [1, 2^31).
         UnreachableGrasp: No collision-free IK solution of the grasp pose was found.
@@ -196,7 +216,7 @@ class IKGoalRegion(ob.GoalSampleableRegion):
         super().__init__(si)
         self.goal = goal
         self.max_samples = max_samples
-        self.pregrasp = _toml.number(pregrasp, "pregrasp", low=0.0)
+        self.pregrasp = _toml.number(pregrasp, "pregrasp", low=0.0, high=MAX_RETREAT)
         self.pregrasp_step = float(pregrasp_step)
         self.max_joint_step = float(max_joint_step)
         self.setThreshold(GOAL_THRESHOLD)

@@ -380,6 +380,8 @@ class HandLaw:
             ConfigError: An unknown key (naming the nearest valid one), a missing
                 ``c``/``b``/``w``/``u``/``mga``, or a bad value, located at ``where.key``.
         """
+        if not isinstance(table, Mapping):
+            raise ConfigError(where, table, f"a table with {', '.join(TABLE_FIELDS)}")
         unknown = sorted(set(table) - set(TABLE_FIELDS) - set(ignore))
         if unknown:
             raise unknown_key(where, unknown[0], table[unknown[0]], TABLE_FIELDS)
@@ -395,7 +397,15 @@ class HandLaw:
 
     def with_options(self, **changes: object) -> HandLaw:
         """A copy with some fields replaced (e.g. ``u``), validated again
-        (``dataclasses.replace``)."""
+        (``dataclasses.replace``).
+
+        Raises:
+            ConfigError: A field that is not one of :data:`TABLE_FIELDS` (naming the
+                nearest), or a bad value.
+        """
+        unknown = sorted(set(changes) - set(TABLE_FIELDS))
+        if unknown:
+            raise unknown_key("hand", unknown[0], changes[unknown[0]], TABLE_FIELDS)
         return dataclasses.replace(self, **changes)  # type: ignore[arg-type]
 
     def to_dict(self) -> dict[str, object]:

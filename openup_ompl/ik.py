@@ -87,6 +87,14 @@ class IKSolver:
     """
 
     def __init__(self, robot: Robot, target: pin.SE3, options: IKOptions | None = None) -> None:
+        if not isinstance(robot, Robot):
+            raise ConfigError("robot", robot, "a Robot (load_robot)")
+        if not isinstance(target, pin.SE3):
+            raise ConfigError(
+                "target", target, "a pinocchio.SE3 (pin.XYZQUATToSE3 converts [x, y, z, q])"
+            )
+        if options is not None and not isinstance(options, IKOptions):
+            raise ConfigError("options", options, "IKOptions or None")
         self.robot = robot
         self.target = target
         self.options = options or IKOptions()

@@ -21,7 +21,7 @@ from ompl import geometric as og
 
 from openup_ompl import _toml
 from openup_ompl.exceptions import ConfigError, InvalidProblem, PlanningFailed, VerifyFailed
-from openup_ompl.goal import GOAL_THRESHOLD, GraspGoal, IKGoalRegion
+from openup_ompl.goal import GOAL_THRESHOLD, MAX_RETREAT, GraspGoal, IKGoalRegion
 from openup_ompl.hand_law import HandLaw
 from openup_ompl.ik import IKOptions, IKSolver
 from openup_ompl.plan import Plan, number_rows
@@ -158,7 +158,7 @@ class PlanningOptions:
             name. OMPL's default (20 % of the space's extent, 2.6 rad on the Panda) measured
             2-8x slower in median solve time on the shipped and test scenes: long coupled
             motions mostly end in collision.
-        pregrasp: The goal region's pregrasp distance [m] (see
+        pregrasp: The goal region's pregrasp distance [m], at most 1 (see
             :class:`~openup_ompl.goal.IKGoalRegion`): OMPL's planners are given pregrasp
             states, each an IK solution backed off straight against the approach direction,
             and :meth:`GraspPlanningSetup.solve` appends the certified approach. 0 gives
@@ -218,7 +218,7 @@ class PlanningOptions:
             value = getattr(self, name)
             if value is not None and not isinstance(value, kind):
                 raise ConfigError(name, value, f"None or an {kind.__name__}")
-        _toml.number(self.pregrasp, "pregrasp", low=0.0)
+        _toml.number(self.pregrasp, "pregrasp", low=0.0, high=MAX_RETREAT)
 
     def overridden(self, **changes: Any) -> PlanningOptions:
         """These options with the fields of ``changes`` that are not ``None`` replaced

@@ -130,7 +130,7 @@ class Robot:
         """Driven hand values (last axis, ``spec.hand_joints`` order) with the followers
         appended (:attr:`hand_joints` order): ``q_f = multiplier * q_leader + offset``."""
         driven = np.asarray(driven, dtype=float)
-        if driven.shape[-1] != self.n_driven:
+        if driven.ndim == 0 or driven.shape[-1] != self.n_driven:
             raise ConfigError(
                 "hand configuration", driven.tolist(), f"{self.n_driven} driven hand joint values"
             )
@@ -229,12 +229,17 @@ class Robot:
             "u": self.spec.u,
             "mga": self.spec.mga,
         }
+        if table is not None and not isinstance(table, Mapping):
+            raise ConfigError(where, table, "a [hand] table (field name -> value)")
         changes = {**(table or {}), **overrides}
         for key in ("c", "b", "w"):
             value = changes.get(key)
             if value is None or isinstance(value, str):
                 continue
-            size = np.size(value)  # type: ignore[arg-type]
+            try:
+                size = np.size(value)  # type: ignore[arg-type]
+            except ValueError:  # ragged
+                raise ConfigError(f"{where}.{key}", value, "a list of numbers") from None
             if size == self.n_driven:
                 try:
                     numbers = np.asarray(value, dtype=float)
@@ -251,11 +256,20 @@ class Robot:
         return HandLaw.from_table(fields, lower, upper, where)
 
     def check_arm(self, arm: np.ndarray, what: str) -> np.ndarray:
-        """Validate an arm configuration: right length, finite, inside the joint limits."""
-        arm = np.asarray(arm, dtype=float)
+        """Validate an arm configuration: right length, finite, inside the joint limits.
+
+        Raises:
+            ConfigError: Naming ``what`` (and the joint beyond its limits).
+        """
         n = self.arm_idx.size
-        if arm.shape != (n,) or not np.all(np.isfinite(arm)):
-            raise ConfigError(what, arm.tolist(), f"{n} finite arm joint values [rad]")
+        try:
+            values = np.array(arm, dtype=float)
+        except (TypeError, ValueError):
+            values = None
+        if values is None or values.shape != (n,) or not np.all(np.isfinite(values)):
+            shown = arm.tolist() if isinstance(arm, np.ndarray) else arm
+            raise ConfigError(what, shown, f"{n} finite arm joint values [rad]")
+        arm = values
         low, high = self.arm_lower, self.arm_upper
         outside = (arm < low - LIMIT_TOLERANCE) | (arm > high + LIMIT_TOLERANCE)
         if np.any(outside):

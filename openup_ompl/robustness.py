@@ -30,6 +30,7 @@ import dataclasses
 import hashlib
 import json
 import math
+import os
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -40,6 +41,7 @@ import numpy as np
 import pinocchio as pin
 
 from openup_ompl import _toml
+from openup_ompl._io import make_dir
 from openup_ompl._resources import data_dir
 from openup_ompl.collision import CollisionWorld
 from openup_ompl.exceptions import ConfigError, InvalidProblem, MissingExtra, PlanningFailed
@@ -495,13 +497,19 @@ def run_robustness(
 
     Raises:
         InvalidProblem: The scene has no object, or its robot no hand to close.
-        ConfigError: Bad options.
+        ConfigError: Bad options, arguments of another type, or ``out`` a file.
         SweepFailed: Some task failed on every attempt.
     """
+    if scene is not None and not isinstance(scene, (str, os.PathLike)):
+        raise ConfigError("scene", scene, "a scene file's path or None")
+    if options is not None and not isinstance(options, RobustnessOptions):
+        raise ConfigError("options", options, "RobustnessOptions or None")
+    if not isinstance(out, (str, os.PathLike)):
+        raise ConfigError("out", out, "an output directory's path")
     scene = Path(scene) if scene is not None else default_robustness_scene()
     options = options or RobustnessOptions()
     problem = check_scene(scene)
-    out = Path(out)
+    out = make_dir(Path(out))
     tasks = make_tasks(scene, options)
     run_tasks(tasks, out / "shards", workers=workers, scheduler=scheduler, quiet=quiet)
     records = load_records(tasks, out / "shards")

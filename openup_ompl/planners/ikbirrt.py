@@ -46,7 +46,7 @@ from ompl import geometric as og
 
 from openup_ompl._toml import is_finite, is_integer, is_number
 from openup_ompl.exceptions import ConfigError
-from openup_ompl.goal import MIN_RETREAT_STEP, GraspGoal, IKGoalRegion
+from openup_ompl.goal import MAX_RETREAT, MIN_RETREAT_STEP, GraspGoal, IKGoalRegion
 
 
 @dataclass(frozen=True)
@@ -60,7 +60,7 @@ class IKBiRRTOptions:
             tree instead of growing the trees.
         goal_restarts: IK restarts per goal-sampling iteration.
         retreat: Length [m] of the straight palm retreat grown from each new goal root
-            (0: none).
+            (0: none; at most :data:`~openup_ompl.goal.MAX_RETREAT`).
         retreat_step: Palm displacement [m] of one retreat step (one goal-tree vertex),
             at least :data:`~openup_ompl.goal.MIN_RETREAT_STEP`.
         seed: Seed of the planner's random generator (``None``: fresh entropy).
@@ -88,8 +88,10 @@ class IKBiRRTOptions:
             )
         if not (is_integer(self.goal_restarts) and self.goal_restarts >= 1):
             raise ConfigError("IKBiRRTOptions.goal_restarts", self.goal_restarts, "an integer >= 1")
-        if not (is_finite(self.retreat) and self.retreat >= 0):
-            raise ConfigError("IKBiRRTOptions.retreat", self.retreat, "a distance >= 0 [m]")
+        if not (is_finite(self.retreat) and 0 <= self.retreat <= MAX_RETREAT):
+            raise ConfigError(
+                "IKBiRRTOptions.retreat", self.retreat, f"a distance in [0, {MAX_RETREAT:g}] m"
+            )
         step = self.retreat_step
         if not (is_finite(step) and step >= MIN_RETREAT_STEP):
             raise ConfigError(
