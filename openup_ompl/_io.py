@@ -20,6 +20,19 @@ def _umask() -> int:
     return mask
 
 
+def check_dir(path: Path) -> Path:
+    """Refuse, without creating anything, a directory path that is (or lies under) a
+    file; returns ``path``.
+
+    Raises:
+        ConfigError: ``path`` or one of its parents is a file.
+    """
+    file = next((p for p in (path, *path.parents) if p.exists() and not p.is_dir()), None)
+    if file is not None:
+        raise ConfigError("directory", str(path), f"a directory ({file} is a file)")
+    return path
+
+
 def make_dir(path: Path) -> Path:
     """Create the directory ``path`` and its parents if missing; returns ``path``.
 
@@ -29,8 +42,8 @@ def make_dir(path: Path) -> Path:
     try:
         path.mkdir(parents=True, exist_ok=True)
     except (FileExistsError, NotADirectoryError):
-        file = next((p for p in (path, *path.parents) if p.exists() and not p.is_dir()), path)
-        raise ConfigError("directory", str(path), f"a directory ({file} is a file)") from None
+        check_dir(path)
+        raise
     return path
 
 

@@ -12,7 +12,7 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from openup_ompl._io import make_dir
+from openup_ompl._io import check_dir
 from openup_ompl.exceptions import ConfigError
 from openup_ompl.viz._mpl import _pyplot
 from openup_ompl.viz._scene import PlanScene
@@ -63,7 +63,7 @@ def show(
     _meshcat()
     plan = Path(plan)
     scene = PlanScene.from_file(plan)
-    out = make_dir(Path(out_dir) if out_dir is not None else plan.parent)
+    out = check_dir(Path(out_dir) if out_dir is not None else plan.parent)
     stem = plan.stem
     # The storyboard loads the robot's meshes first: a missing one fails with no file written.
     board = write_storyboard(scene, out / f"{stem}_storyboard.png", storyboard)
