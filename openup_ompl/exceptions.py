@@ -123,6 +123,7 @@ class PlanningFailed(OpenUpError):
     Attributes:
         status: OMPL's planner status, as text (e.g. ``"Timeout"``).
         planner: The planner's name.
+        time_limit: The time limit it was given [s].
     """
 
     def __init__(self, status: str, planner: str, time_limit: float) -> None:
@@ -141,6 +142,8 @@ class VerifyFailed(PlanningFailed):
     Attributes:
         reason: What the re-check found (e.g. ``"path row 12 collides"``).
         planner: The planner that returned the path.
+        status: The same as ``reason`` (no OMPL status: the planner had succeeded).
+        time_limit: ``nan`` (not a matter of time).
     """
 
     def __init__(self, reason: str, planner: str = "") -> None:

@@ -244,8 +244,15 @@ class GraspPlanningSetup:
         UnreachableGrasp: No collision-free IK solution of the grasp pose was found.
 
     Attributes:
+        problem: The problem as given.
+        options: The :class:`PlanningOptions` in force (the keywords applied).
+        law: The hand law planned with (the problem's, with the options' ``u``,
+            variants and fixed hand).
         simple_setup: The ``og.SimpleSetup``; plug any OMPL planner into it.
+        space_information: Its ``ob.SpaceInformation`` (build planners on it).
         checker: The numpy-level coupled check (counters of checks live there).
+        ik: The palm-frame :class:`~openup_ompl.ik.IKSolver` of the grasp pose.
+        goal: The :class:`~openup_ompl.goal.GraspGoal` (IK solutions found so far).
         goal_region: The ``IKGoalRegion`` set as the problem's goal.
     """
 

@@ -103,7 +103,14 @@ class Shape:
     def geometry(self, padding: float = 0.0) -> coal.CollisionGeometry:
         """The Coal collision geometry of this shape, centred at its origin, grown by
         ``padding`` [m] on every side (a superset of the shape's Minkowski sum with a
-        ball of that radius)."""
+        ball of that radius).
+
+        Raises:
+            ConfigError: ``padding`` negative or not finite (a shrunk shape would hide
+                contacts).
+        """
+        if not (_toml.is_finite(padding) and padding >= 0):
+            raise ConfigError("padding", padding, "a distance >= 0 [m]")
         if self.shape == "box":
             assert self.size is not None
             return coal.Box(*(float(x) + 2 * padding for x in self.size))

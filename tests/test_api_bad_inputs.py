@@ -15,6 +15,7 @@ import pytest
 import openup_ompl as oo
 from openup_ompl.hand_law import HandLaw
 from openup_ompl.ik import IKSolver
+from openup_ompl.perception import kinect_sigmas
 from openup_ompl.robustness import RobustnessOptions, run_robustness
 
 
@@ -55,6 +56,12 @@ def _cases(setup: oo.GraspPlanningSetup) -> dict[str, tuple[Callable[[], Any], s
         "sweep options a string": (lambda: run_robustness(options="x"), "options"),  # type: ignore[arg-type]
         "sweep scene a number": (lambda: run_robustness(scene=5), "scene"),  # type: ignore[arg-type]
         "sweep torsion a string": (lambda: RobustnessOptions(torsion="a"), "torsion"),  # type: ignore[arg-type]
+        "negative padding": (lambda: setup.problem.environment[0].geometry(-0.1), "padding"),
+        "negative depth": (lambda: kinect_sigmas(np.array([-1.0]), np.array([0.0])), "depth"),
+        "grazing incidence": (
+            lambda: kinect_sigmas(np.array([1.0]), np.array([np.pi / 2])),
+            "incidence",
+        ),
     }
 
 
@@ -80,6 +87,9 @@ def _cases(setup: oo.GraspPlanningSetup) -> dict[str, tuple[Callable[[], Any], s
         "sweep options a string",
         "sweep scene a number",
         "sweep torsion a string",
+        "negative padding",
+        "negative depth",
+        "grazing incidence",
     ],
 )
 def test_bad_argument_is_a_config_error_naming_it(setup, case):

@@ -76,8 +76,25 @@ def kinect_sigmas(
     depth: np.ndarray, incidence: np.ndarray, options: NoiseOptions | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Axial and lateral standard deviations [m] at ``depth`` [m] and ``incidence`` [rad]
-    (Nguyen et al. 2012, eqs. 5-6, times ``options.scale``)."""
-    options = options or NoiseOptions()
+    (Nguyen et al. 2012, eqs. 5-6, times ``options.scale``).
+
+    Raises:
+        ConfigError: A depth not positive or an incidence outside ``[0, pi/2)``, where
+            the model has no meaning.
+    """
+    depth, incidence = np.asarray(depth, dtype=float), np.asarray(incidence, dtype=float)
+    if not np.all(np.isfinite(depth) & (depth > 0)):
+        raise ConfigError("depth", depth.tolist(), "positive finite depths [m]")
+    if not np.all((incidence >= 0) & (incidence < math.pi / 2)):
+        raise ConfigError("incidence", incidence.tolist(), "angles in [0, pi/2) rad")
+    return _sigmas(depth, incidence, options or NoiseOptions())
+
+
+def _sigmas(
+    depth: np.ndarray, incidence: np.ndarray, options: NoiseOptions
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`kinect_sigmas` without its checks (the sensor's own depths and incidences,
+    the latter capped at ``max_incidence``)."""
     grazing = incidence / (math.pi / 2 - incidence)
     axial = 0.0012 + 0.0019 * (depth - 0.4) ** 2 + 0.0001 / np.sqrt(depth) * grazing**2
     lateral_px = options.lateral_px + 0.035 * grazing
@@ -121,7 +138,7 @@ def noisy_cloud(
     incidence = view.incidence
     valid = view.hit & (incidence <= math.radians(options.max_incidence))
     depth = view.depth[valid]
-    axial, lateral = kinect_sigmas(depth, incidence[valid], options)
+    axial, lateral = _sigmas(depth, incidence[valid], options)
     camera = view.camera_points()[valid]
     noise = rng.standard_normal(camera.shape)
     camera = camera + noise * np.column_stack([lateral, lateral, axial])
@@ -159,7 +176,7 @@ def normal_sigma(
         rays = camera / np.linalg.norm(camera, axis=1, keepdims=True)
         normal = normals @ rotation
         incidence = np.minimum(np.arccos(np.clip(np.abs(np.sum(rays * normal, 1)), 0, 1)), cap)
-        axial, lateral = kinect_sigmas(depth, incidence, replace(options, scale=1.0))
+        axial, lateral = _sigmas(depth, incidence, replace(options, scale=1.0))
         variance = (
             lateral**2 * (normal[:, 0] ** 2 + normal[:, 1] ** 2) + axial**2 * normal[:, 2] ** 2
         )
