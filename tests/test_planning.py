@@ -386,6 +386,7 @@ def test_option_classes_refuse_values_of_the_wrong_type(make, named: str) -> Non
         (lambda problem: oo.read_plan(None), "plan file"),
         (lambda problem: oo.close_hand(problem, np.full(problem.robot.model.nq, np.nan)), "q"),
         (lambda problem: check_offset("abc"), "object offset"),
+        (lambda problem: check_offset((0.0, 0.0, 100.0)), "object offset yaw"),
         (lambda problem: ClosedLoopOptions(policies=()), "policies"),
         (lambda problem: ClosedLoopOptions(planner="foo"), "planner"),
         (lambda problem: oo.force_closure(np.eye(3), np.eye(3), edges=10**9), "edges"),

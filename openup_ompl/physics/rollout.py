@@ -65,8 +65,8 @@ def check_offset(offset: Sequence[float]) -> tuple[float, float, float]:
     """``(dx, dy, yaw)`` as floats.
 
     Raises:
-        ConfigError: Not three finite numbers (metres, metres, radians), or ``dx`` or
-            ``dy`` beyond :data:`OFFSET_MAX`.
+        ConfigError: Not three finite numbers (metres, metres, radians), ``dx`` or
+            ``dy`` beyond :data:`OFFSET_MAX`, or ``yaw`` outside ``[-pi, pi]``.
     """
     try:
         if isinstance(offset, (str, bytes)):
@@ -83,6 +83,8 @@ def check_offset(offset: Sequence[float]) -> tuple[float, float, float]:
             raise ConfigError(
                 f"object offset {name}", value, f"a displacement within +-{OFFSET_MAX:g} m"
             )
+        if name == "yaw" and abs(value) > math.pi:  # as the robustness sweep's yaws
+            raise ConfigError(f"object offset {name}", value, "an angle in [-pi, pi] rad")
     return values  # type: ignore[return-value]
 
 
