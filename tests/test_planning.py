@@ -402,6 +402,7 @@ def test_option_classes_refuse_values_of_the_wrong_type(make, named: str) -> Non
         "plan None",
         "close NaN",
         "offset str",
+        "offset yaw 100 rad",
         "no policy",
         "closed-loop planner",
         "cone edges",
