@@ -388,10 +388,8 @@ class GraspPlanningSetup:
 
     def reseed(self, seed: int | None) -> None:
         """Restart the run's random generators (IK restarts, goal sampling) from ``seed``
-        (an integer in ``[0, 2^31)``; ``None`` draws one)."""
-        if seed is not None and not (_toml.is_integer(seed) and 0 <= seed < 2**31):
-            raise ConfigError("seed", seed, "an integer seed in [0, 2^31) or None")
-        self.goal.rng = np.random.default_rng(seed)
+        (:func:`check_seed`: ``None`` draws one)."""
+        self.goal.rng = np.random.default_rng(check_seed(seed))
         self.goal.solutions[:] = self._initial_solutions
         self.goal_region.forget()
 

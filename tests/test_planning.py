@@ -750,6 +750,8 @@ def test_verify_densify_and_reseed_refuse_what_they_cannot_read(default_setup):
             call()
     with pytest.raises(oo.VerifyFailed):
         setup.verify(plan.path[::-1])
+    # reseed takes every seed solve() does (up to 2^63), not only 32-bit ones.
+    assert setup.solve(seed=2**40).seed == 2**40
 
 
 def test_start_in_collision_names_the_self_pairs_its_margins_find():
