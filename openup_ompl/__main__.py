@@ -17,6 +17,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from openup_ompl._io import check_dir
 from openup_ompl.exceptions import ConfigError, MissingExtra, OpenUpError, PlanningFailed
 
 
@@ -155,9 +156,7 @@ def _file_out(path: Path | None) -> None:
 def _dir_out(path: Path) -> None:
     """Refuse, before any work, an output directory that is an existing file or that
     cannot be written."""
-    for candidate in (path, *path.parents):
-        if candidate.exists() and not candidate.is_dir():
-            raise ConfigError("--out", str(path), f"a directory ({candidate} is a file)")
+    check_dir(path, "--out")
     nearest = next((p for p in (path.absolute(), *path.absolute().parents) if p.exists()), None)
     if nearest is not None:
         _writable(path, nearest)

@@ -20,16 +20,16 @@ def _umask() -> int:
     return mask
 
 
-def check_dir(path: Path) -> Path:
+def check_dir(path: Path, what: str = "directory") -> Path:
     """Refuse, without creating anything, a directory path that is (or lies under) a
     file; returns ``path``.
 
     Raises:
-        ConfigError: ``path`` or one of its parents is a file.
+        ConfigError: ``path`` or one of its parents is a file, naming ``what``.
     """
     file = next((p for p in (path, *path.parents) if p.exists() and not p.is_dir()), None)
     if file is not None:
-        raise ConfigError("directory", str(path), f"a directory ({file} is a file)")
+        raise ConfigError(what, str(path), f"a directory ({file} is a file)")
     return path
 
 

@@ -103,11 +103,29 @@ def number(value: Any, where: str, *, low: float | None = None, high: float | No
     return float(value)
 
 
+def floats(value: Any) -> np.ndarray | None:
+    """``value`` as an array of floats (a copy), or ``None`` when it is not numbers (a
+    string, ``None``, a ragged list): the caller then names the value as given."""
+    if isinstance(value, (str, bytes)):
+        return None
+    try:
+        return np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        return None
+
+
+def shown(value: Any) -> Any:
+    """``value`` as an error message shows it: a numpy array as a list, not its repr."""
+    return value.tolist() if isinstance(value, np.ndarray) else value
+
+
 def vector(value: Any, where: str, length: int | None = None) -> np.ndarray:
-    """A list of finite numbers, optionally of a given length."""
-    ok = isinstance(value, list) and all(
-        isinstance(x, (int, float)) and not isinstance(x, bool) for x in value
-    )
+    """A list of finite numbers (a tuple or a numpy array too, for values given in
+    code), optionally of a given length."""
+    value = shown(value)
+    if isinstance(value, tuple):
+        value = list(value)
+    ok = isinstance(value, list) and all(is_number(x) for x in value)
     if ok:
         array = np.array(value, dtype=float)
         ok = bool(np.all(np.isfinite(array))) and (length is None or array.size == length)

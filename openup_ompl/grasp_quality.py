@@ -15,7 +15,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from openup_ompl._toml import is_finite, is_integer
+from openup_ompl._toml import floats, is_finite, is_integer, shown
 from openup_ompl.exceptions import ConfigError
 
 __all__ = [
@@ -39,10 +39,9 @@ MAX_EDGES = 64
 
 def _rows(value: object, where: str) -> np.ndarray:
     """``value`` as ``(K, 3)`` floats, else :class:`ConfigError` naming ``where``."""
-    try:
-        array = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ConfigError(where, value, "rows of [x, y, z]") from None
+    array = floats(value)
+    if array is None:
+        raise ConfigError(where, value, "rows of [x, y, z]")
     if array.size % 3:
         raise ConfigError(where, array.shape, "rows of [x, y, z]")
     return array.reshape(-1, 3)
@@ -134,14 +133,9 @@ def contact_wrenches(
         raise ConfigError("friction", friction, "a coefficient >= 0")
     if not (is_integer(edges) and 3 <= edges <= MAX_EDGES):
         raise ConfigError("edges", edges, f"an integer in [3, {MAX_EDGES}] per friction cone")
-    origin = p.mean(axis=0)
-    if center is not None:
-        try:
-            origin = np.array(center, dtype=float)
-        except (TypeError, ValueError):
-            origin = np.full(3, np.nan)
-        if origin.shape != (3,) or not np.isfinite(origin).all():
-            raise ConfigError("center", center, "a point [x, y, z] of finite numbers [m]")
+    origin = p.mean(axis=0) if center is None else floats(center)
+    if origin is None or origin.shape != (3,) or not np.isfinite(origin).all():
+        raise ConfigError("center", shown(center), "a point [x, y, z] of finite numbers [m]")
     arms = p - origin
     scale = max(float(np.linalg.norm(arms, axis=1).mean()), 1e-9)
     t1, t2 = _tangents(n)
@@ -206,15 +200,11 @@ def enclosed(normals: object, axis: Sequence[float] | np.ndarray | None = None) 
         return False
     if axis is None:
         axis = np.linalg.svd(n)[2][-1]
-    try:
-        a = np.array(axis, dtype=float)
-    except (TypeError, ValueError):
-        a = np.full(3, np.nan)
-    length = float(np.linalg.norm(a)) if a.shape == (3,) else math.nan
-    if not (math.isfinite(length) and length > 1e-9):
-        shown = axis.tolist() if isinstance(axis, np.ndarray) else axis
-        raise ConfigError("enclosed: axis", shown, "a finite non-zero 3-vector")
-    a = a / length
+    given = floats(axis)
+    length = float(np.linalg.norm(given)) if given is not None and given.shape == (3,) else 0.0
+    if given is None or not (math.isfinite(length) and length > 1e-9):
+        raise ConfigError("enclosed: axis", shown(axis), "a finite non-zero 3-vector")
+    a = given / length
     e1, e2 = _tangents(a[None, :])
     planar = np.stack([n @ e1[0], n @ e2[0]])
     keep = np.linalg.norm(planar, axis=0) > 1e-6

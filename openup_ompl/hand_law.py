@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from openup_ompl._toml import is_finite, is_number, unknown_key
+from openup_ompl._toml import floats, is_finite, is_number, shown, unknown_key
 from openup_ompl.exceptions import ConfigError
 
 #: Names accepted for :attr:`HandLaw.distance`.
@@ -249,13 +249,9 @@ class HandLaw:
                     f"hand.{name}", arrays[name].tolist(), f"{n} values, one per hand joint"
                 )
         if self.fixed is not None:
-            try:
-                fixed = np.array(self.fixed, dtype=float)
-            except (TypeError, ValueError):
-                fixed = np.full(n, np.nan)
-            if fixed.shape != (n,) or not np.all(np.isfinite(fixed)):
-                shown = self.fixed.tolist() if isinstance(self.fixed, np.ndarray) else self.fixed
-                raise ConfigError("hand.fixed", shown, f"{n} finite values")
+            fixed = floats(self.fixed)
+            if fixed is None or fixed.shape != (n,) or not np.all(np.isfinite(fixed)):
+                raise ConfigError("hand.fixed", shown(self.fixed), f"{n} finite values")
             object.__setattr__(self, "fixed", fixed)
         lower, upper = arrays["lower"], arrays["upper"]
         references = [(name, arrays[name]) for name in ("c", "b", "w")]
@@ -330,13 +326,10 @@ class HandLaw:
         Raises:
             ConfigError: ``d`` is not a vector of finite numbers ``>= 0``.
         """
-        try:
-            d = np.array(d, dtype=float)
-        except (TypeError, ValueError):
-            raise ConfigError("d", d, "a vector of finite normalised distances >= 0") from None
-        if d.ndim != 1 or not np.all(np.isfinite(d) & (d >= 0.0)):
-            raise ConfigError("d", d.tolist(), "a vector of finite normalised distances >= 0")
-        return self.columns(d).T
+        values = floats(d)
+        if values is None or values.ndim != 1 or not np.all(np.isfinite(values) & (values >= 0)):
+            raise ConfigError("d", shown(d), "a vector of finite normalised distances >= 0")
+        return self.columns(values).T
 
     def columns(self, d: np.ndarray) -> np.ndarray:
         """Hand configurations for a vector of distances as the columns of an array of

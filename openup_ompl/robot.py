@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from openup_ompl import _toml
 from openup_ompl._model import frame_id
 from openup_ompl._resources import erd_share_dir
 from openup_ompl.exceptions import ConfigError, FrameNotFound, JointNotFound
@@ -262,13 +263,9 @@ class Robot:
             ConfigError: Naming ``what`` (and the joint beyond its limits).
         """
         n = self.arm_idx.size
-        try:
-            values = np.array(arm, dtype=float)
-        except (TypeError, ValueError):
-            values = None
+        values = _toml.floats(arm)
         if values is None or values.shape != (n,) or not np.all(np.isfinite(values)):
-            shown = arm.tolist() if isinstance(arm, np.ndarray) else arm
-            raise ConfigError(what, shown, f"{n} finite arm joint values [rad]")
+            raise ConfigError(what, _toml.shown(arm), f"{n} finite arm joint values [rad]")
         arm = values
         low, high = self.arm_lower, self.arm_upper
         outside = (arm < low - LIMIT_TOLERANCE) | (arm > high + LIMIT_TOLERANCE)

@@ -155,18 +155,12 @@ class Problem:
         if not isinstance(self.robot, Robot):
             raise ConfigError("problem.robot", self.robot, "a Robot (load_robot)")
         n = self.robot.arm_idx.size
-        try:
-            start = np.array(self.start, dtype=float)
-        except (TypeError, ValueError):
-            start = np.full(n, np.nan)
-        if start.shape != (n,) or not np.all(np.isfinite(start)):
-            raise ConfigError("problem.start", _shown(self.start), f"{n} finite arm joint values")
+        start = _toml.floats(self.start)
+        if start is None or start.shape != (n,) or not np.all(np.isfinite(start)):
+            shown = _toml.shown(self.start)
+            raise ConfigError("problem.start", shown, f"{n} finite arm joint values")
         self.start = start
-        try:
-            values = np.array(self.grasp_pose, dtype=float).tolist()
-        except (TypeError, ValueError):
-            values = _shown(self.grasp_pose)
-        self.grasp_pose = _toml.pose(values, "problem.grasp_pose")
+        self.grasp_pose = _toml.pose(self.grasp_pose, "problem.grasp_pose")
 
     @property
     def grasp(self) -> pin.SE3:
@@ -177,11 +171,6 @@ class Problem:
     def environment(self) -> list[Shape]:
         """Everything the robot must not touch: the obstacles and the object."""
         return [*self.obstacles, *([self.object] if self.object is not None else [])]
-
-
-def _shown(value: object) -> object:
-    """``value`` as an error message shows it (a list, not a numpy array's repr)."""
-    return value.tolist() if isinstance(value, np.ndarray) else value
 
 
 def default_scene_path() -> Path:

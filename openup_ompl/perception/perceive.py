@@ -18,8 +18,8 @@ import numpy as np
 import pinocchio as pin
 
 from openup_ompl import _toml
-from openup_ompl._io import write_atomic
-from openup_ompl.exceptions import ConfigError, InvalidProblem, ObjectNotVisible, TooFewPoints
+from openup_ompl._io import make_dir, write_atomic
+from openup_ompl.exceptions import InvalidProblem, ObjectNotVisible, TooFewPoints
 from openup_ompl.perception.camera import (
     CameraOptions,
     DepthCamera,
@@ -222,11 +222,7 @@ def at_estimate(problem: Problem, pose: np.ndarray) -> Problem:
     shape = problem.object
     if shape is None:
         raise InvalidProblem("the scene has no [object]")
-    try:
-        values = np.array(pose, dtype=float).tolist()
-    except (TypeError, ValueError):
-        values = pose
-    pose = _toml.pose(values, "pose")
+    pose = _toml.pose(pose, "pose")
     moved = pin.XYZQUATToSE3(pose) * shape.placement.inverse()
     grasp = np.asarray(pin.SE3ToXYZQUAT(moved * problem.grasp), dtype=float)
     raw = {**shape.raw, "pose": [float(x) for x in pose]}
@@ -281,10 +277,7 @@ def write_perception(problem: Problem, perception: Perception, out: str | Path) 
         raise InvalidProblem("the scene has no [object]")
     if problem.path is None:
         raise InvalidProblem("the problem was not loaded from a scene file: nothing to rewrite")
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise ConfigError("out", str(out), "a directory (this is a file)")
-    out.mkdir(parents=True, exist_ok=True)
+    out = make_dir(Path(out))
     paths = {
         "cloud": out / "cloud.npz",
         "summary": out / "perception.json",

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pinocchio as pin
 
+from openup_ompl import _toml
 from openup_ompl.exceptions import ConfigError
 from openup_ompl.scene import Problem
 
@@ -67,10 +68,10 @@ def clearance_per_u(problem: Problem) -> float:
 def _covariance_matrix(name: str, value: np.ndarray) -> np.ndarray:
     """``value`` as a 3 x 3 covariance: finite, symmetric, positive semi-definite (to a
     rounding tolerance), else :class:`ConfigError` naming ``name``."""
-    try:
-        matrix = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        matrix = np.full((1, 1), np.nan)
+    expected = "a finite, symmetric, positive semi-definite 3 x 3 matrix"
+    matrix = _toml.floats(value)
+    if matrix is None:
+        raise ConfigError(name, value, expected)
     ok = matrix.shape == (3, 3) and bool(np.all(np.isfinite(matrix)))
     if ok:
         scale = max(float(np.abs(matrix).max()), 1e-300)
@@ -78,7 +79,7 @@ def _covariance_matrix(name: str, value: np.ndarray) -> np.ndarray:
         ok = ok and float(np.linalg.eigvalsh(0.5 * (matrix + matrix.T)).min()) >= -1e-9 * scale
     if not ok:
         shown = matrix.tolist() if matrix.size <= 9 else f"an array of shape {matrix.shape}"
-        raise ConfigError(name, shown, "a finite, symmetric, positive semi-definite 3 x 3 matrix")
+        raise ConfigError(name, shown, expected)
     return matrix
 
 
