@@ -36,6 +36,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import _common  # noqa: E402
 
 import openup_ompl as oo  # noqa: E402
+from openup_ompl._model import moved_by  # noqa: E402
 from openup_ompl.benchmark import default_problems_dir  # noqa: E402
 from openup_ompl.collision import CollisionWorld  # noqa: E402
 from openup_ompl.viz._geometry import coal_mesh, placed  # noqa: E402
@@ -47,13 +48,7 @@ HANDS = ("law", "w")
 
 def finger_geometries(robot: oo.Robot) -> list[int]:
     """Indices of the collision geometries of the links a hand joint moves."""
-    model = robot.model
-    hand_joints = {model.getJointId(name) for name in robot.hand_joints}
-    return [
-        i
-        for i, g in enumerate(robot.collision_model.geometryObjects)
-        if hand_joints.intersection(model.supports[g.parentJoint])
-    ]
+    return np.flatnonzero(moved_by(robot.model, robot.collision_model, robot.hand_joints)).tolist()
 
 
 def finger_points(robot: oo.Robot, arm: np.ndarray, hand: np.ndarray) -> list[np.ndarray]:

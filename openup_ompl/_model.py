@@ -32,3 +32,13 @@ def is_prismatic(joint: pin.JointModel) -> bool:
 def prismatic_joints(model: pin.Model, names: Sequence[str]) -> np.ndarray:
     """Per joint name, whether it is prismatic (values in metres; else radians)."""
     return np.array([is_prismatic(model.joints[model.getJointId(n)]) for n in names], dtype=bool)
+
+
+def moved_by(model: pin.Model, geometry: pin.GeometryModel, joints: Sequence[str]) -> np.ndarray:
+    """Per geometry object, whether one of the named joints moves it (it lies on a link
+    those joints carry): for a hand's joints, the fingers."""
+    ids = {int(model.getJointId(name)) for name in joints}
+    return np.array(
+        [bool(ids.intersection(model.supports[g.parentJoint])) for g in geometry.geometryObjects],
+        dtype=bool,
+    )

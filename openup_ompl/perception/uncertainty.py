@@ -8,6 +8,7 @@ import numpy as np
 import pinocchio as pin
 
 from openup_ompl import _toml
+from openup_ompl._model import moved_by
 from openup_ompl.exceptions import ConfigError
 from openup_ompl.scene import Problem
 
@@ -27,11 +28,11 @@ def _hand_extent(problem: Problem, hand: np.ndarray) -> np.ndarray:
     q = robot.full_q(problem.start, hand)
     pin.forwardKinematics(model, data, q)
     palm = pin.updateFramePlacement(model, data, robot.palm_frame_id)
-    hand_joints = {int(model.getJointId(name)) for name in robot.hand_joints}
+    fingers = moved_by(model, robot.collision_model, robot.hand_joints)
     corners = []
     signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], dtype=float)
-    for geometry in robot.collision_model.geometryObjects:
-        if not hand_joints & set(model.supports[geometry.parentJoint]):
+    for geometry, finger in zip(robot.collision_model.geometryObjects, fingers, strict=True):
+        if not finger:
             continue
         shape = geometry.geometry
         shape.computeLocalAABB()

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from openup_ompl._model import prismatic_joints
+from openup_ompl._model import moved_by, prismatic_joints
 from openup_ompl.exceptions import ConfigError
 from openup_ompl.hand_law import HandLaw, NormalizedDistance
 from openup_ompl.plan import Plan, PlanFile
@@ -172,14 +172,7 @@ class PlanScene:
 
     def hand_geometry(self, geometry: pin.GeometryModel) -> np.ndarray:
         """Per geometry object, whether it moves with a hand joint (a finger)."""
-        hand_ids = {self.model.getJointId(n) for n in self.hand_joints}
-        return np.array(
-            [
-                bool(hand_ids.intersection(self.model.supports[g.parentJoint]))
-                for g in geometry.geometryObjects
-            ],
-            dtype=bool,
-        )
+        return moved_by(self.model, geometry, self.hand_joints)
 
     def view_direction(self) -> np.ndarray:
         """A unit vector from the scene towards a camera that sees the reach from the side
