@@ -241,6 +241,11 @@ class Rollout:
                 f"{self.timed.duration:.3g} s)",
             )
         self.closed, self.closing_speed, self.closed_source = closed_targets(data, self.world)
+        # Speed of each hand joint's target while the hand closes [rad/s or m/s].
+        world = self.world
+        self.close_rates = self.closing_speed * np.where(
+            world.prismatic[world.hand], self.options.finger_close_speed, self.options.close_speed
+        )
         close_time = self._close_time(self.path[-1][self.world.hand])
         if close_time > PHASE_MAX:
             raise ConfigError(
@@ -257,19 +262,11 @@ class Rollout:
         self.goal = plan.grasp_pose[:3]
         self.start_distance = float(data["hand_law"].get("start_palm_distance") or 0.0)
 
-    def _close_rates(self) -> np.ndarray:
-        """Speed of each hand joint's target while the hand closes [rad/s or m/s]."""
-        options, world = self.options, self.world
-        speeds = np.where(
-            world.prismatic[world.hand], options.finger_close_speed, options.close_speed
-        )
-        return speeds * self.closing_speed  # type: ignore[no-any-return]
-
     def _close_time(self, start: np.ndarray) -> float:
         """Time [s] the hand's targets take from ``start`` to the closed configuration."""
         if not self.world.hand.size:
             return 0.0
-        return float(np.max(np.abs(self.closed - start) / self._close_rates()))
+        return float(np.max(np.abs(self.closed - start) / self.close_rates))
 
     def run(
         self, offset: Sequence[float] = (0.0, 0.0, 0.0), seed: int = 0, frames: bool = True
@@ -445,7 +442,7 @@ class Rollout:
 
         state["phase"] = "close"
         start = ctrl[hand].copy()
-        rates = self._close_rates()
+        rates = self.close_rates
         span = np.abs(self.closed - start)
         close_time = self._close_time(start)
         close_steps = math.ceil(close_time / dt) + round(options.close_settle / dt)
