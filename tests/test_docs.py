@@ -137,3 +137,33 @@ def test_quoted_benchmark_options_exist() -> None:
         known = set(FLAG.findall(done.stdout))
         wrong += [f"{script} {flag}" for flag in sorted(flags - known)]
     assert not wrong, wrong
+
+
+def _python_blocks(text: str) -> list[str]:
+    return re.findall(r"```python\n(.*?)```", text, flags=re.S)
+
+
+@pytest.mark.slow  # plans, closes the hand, runs a 20-plan sweep
+def test_readme_python_api_runs_as_written(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The README's Python API blocks up to the physics one run in order, as a user would
+    paste them into one session at the repository root, and the values their comments
+    announce (``# True here``, ``# False: ...``) are what they return. (The physics block
+    runs a default physics sweep, minutes long: tests/test_physics.py covers its calls.)"""
+    blocks = _python_blocks(READMES[0].read_text())
+    api = [block for block in blocks if "physics" not in block]
+    assert len(api) >= 3, len(api)
+    (tmp_path / "scenes").symlink_to(ROOT / "scenes")
+    monkeypatch.chdir(tmp_path)
+    namespace: dict[str, object] = {}
+    announced = 0
+    for block in api:
+        exec(compile(block, "README.md", "exec"), namespace)  # noqa: S102 - the README's code
+        for line in block.splitlines():
+            match = re.match(r"^(\S.*?)\s+# (True|False)\b", line)
+            if match and "=" not in match.group(1).split("(")[0]:
+                announced += 1
+                value = eval(match.group(1), namespace)  # noqa: S307 - the README's code
+                assert bool(value) is (match.group(2) == "True"), line
+    assert announced >= 2
+    assert (tmp_path / "plan.json").is_file()
+    assert (tmp_path / "robustness").is_dir()
