@@ -244,15 +244,14 @@ def plot(results: list[dict[str, Any]], out: Path) -> Path:
             start=1,
         ):
             q[robot.hand_idx] = hand
-            drawn.meshes_at(q, fine=True)  # places the geometries at q
             layers = {"arm": [], "hand": [], "contact": []}
-            for i, mesh in enumerate(drawn.fine):
-                if mesh is None:
+            for i, world in enumerate(drawn.placed_at(q, fine=True)):
+                if world is None:
                     continue
                 kind = "arm"
                 if drawn.is_hand[i]:
                     kind = "contact" if column == 1 and names[i] in touching else "hand"
-                layers[kind].append(placed(mesh, drawn.placements.oMg[i]))
+                layers[kind].append(world)
             low, high = closeup_bounds(_palm(robot, q), layers["hand"] + layers["contact"], 1.5)
             panel = fig.add_subplot(grid[0, column], projection="3d")
             _draw(

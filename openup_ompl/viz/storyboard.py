@@ -104,17 +104,23 @@ class _Robot:
             self.coarse = [None if m is None else decimate(m, options.mesh_cell) for m in self.fine]
         self.is_hand = scene.hand_geometry(self.geometry)
 
-    def meshes_at(self, q: np.ndarray, fine: bool = False) -> tuple[list[Mesh], list[Mesh]]:
-        """World meshes of the arm and of the hand (the links a hand joint moves) at ``q``."""
+    def placed_at(self, q: np.ndarray, fine: bool = False) -> list[Mesh | None]:
+        """Per collision geometry, its world mesh at ``q`` (``None`` where it has none)."""
         pin.forwardKinematics(self.scene.model, self.kinematics, q)
         pin.updateGeometryPlacements(
             self.scene.model, self.kinematics, self.geometry, self.placements
         )
+        return [
+            None if mesh is None else placed(mesh, self.placements.oMg[i])
+            for i, mesh in enumerate(self.fine if fine else self.coarse)
+        ]
+
+    def meshes_at(self, q: np.ndarray, fine: bool = False) -> tuple[list[Mesh], list[Mesh]]:
+        """World meshes of the arm and of the hand (the links a hand joint moves) at ``q``."""
         arm: list[Mesh] = []
         hand: list[Mesh] = []
-        for i, mesh in enumerate(self.fine if fine else self.coarse):
-            if mesh is not None:
-                world = placed(mesh, self.placements.oMg[i])
+        for i, world in enumerate(self.placed_at(q, fine)):
+            if world is not None:
                 (hand if self.is_hand[i] else arm).append(world)
         return arm, hand
 
