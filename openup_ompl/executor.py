@@ -56,6 +56,14 @@ __all__ = [
 SEED_LIMIT = 2**31
 
 
+def check_generator_seed(seed: int, where: str = "seed") -> int:
+    """``seed`` if it is an integer below :data:`SEED_LIMIT`, else a :class:`ConfigError`
+    naming ``where``."""
+    if not (is_integer(seed) and 0 <= seed < SEED_LIMIT):
+        raise ConfigError(where, seed, "an integer seed in [0, 2^31)")
+    return int(seed)
+
+
 def check_seeds(first: int, count: int, most: int, where: str) -> None:
     """Refuse a run of seeds ``first, ..., first + count - 1`` (``where`` names ``count``)
     that is empty, longer than ``most`` or reaches :data:`SEED_LIMIT`.
@@ -65,8 +73,7 @@ def check_seeds(first: int, count: int, most: int, where: str) -> None:
     """
     if not (is_integer(count) and 1 <= count <= most):
         raise ConfigError(where, count, f"an integer in [1, {most}]")
-    if not (is_integer(first) and 0 <= first < SEED_LIMIT):
-        raise ConfigError("seed", first, "an integer seed in [0, 2^31)")
+    check_generator_seed(first)
     if first + count - 1 >= SEED_LIMIT:
         raise ConfigError(
             f"seed + {where} - 1",

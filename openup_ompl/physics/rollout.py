@@ -33,9 +33,8 @@ from typing import Any
 
 import numpy as np
 
-from openup_ompl._toml import is_integer
 from openup_ompl.exceptions import ConfigError, OpenUpError, SimulationDiverged
-from openup_ompl.executor import SEED_LIMIT
+from openup_ompl.executor import check_generator_seed
 from openup_ompl.grasp import closing_limits
 from openup_ompl.physics.options import PHASE_MAX, PhysicsOptions
 from openup_ompl.physics.record import ExecutionRecord
@@ -281,8 +280,7 @@ class Rollout:
         import mujoco
 
         dx, dy, yaw = check_offset(offset)
-        if not (is_integer(seed) and 0 <= seed < SEED_LIMIT):
-            raise ConfigError("seed", seed, "an integer seed in [0, 2^31)")
+        check_generator_seed(seed)
         messages: list[str] = []
         previous = mujoco.get_mju_user_warning()
         mujoco.set_mju_user_warning(messages.append)
