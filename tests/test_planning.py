@@ -214,6 +214,45 @@ def test_start_at_goal_is_rejected(default_problem: oo.Problem, tmp_path: Path) 
         oo.GraspPlanningSetup(oo.load_scene(path))
 
 
+def _grasp_near_start(problem: oo.Problem, tmp_path: Path, offset: float) -> Path:
+    """The default scene with its grasp pose at the start's palm moved ``offset`` [m]
+    along the palm's approach axis (its orientation kept)."""
+    robot = problem.robot
+    placement = robot.palm_placement(
+        robot.model.createData(), robot.full_q(problem.start, problem.hand_law(1.0))
+    )
+    placement.translation += offset * placement.rotation @ np.asarray(robot.spec.approach)
+    pose = ", ".join(f"{x:.12f}" for x in pin.SE3ToXYZQUAT(placement))
+    return _scene(tmp_path, GRASP, f"pose = [{pose}]")
+
+
+def test_start_near_the_grasp_is_refused_before_any_check(
+    default_problem: oo.Problem, tmp_path: Path
+) -> None:
+    """Algorithm 1 divides by the start's distance to the grasp: a start within
+    MIN_START_DISTANCE of it (the loosest goal tolerance) is already there, and a law that
+    would move the fingers over less than MIN_LAW_TRAVEL of the reach is refused (its
+    checks grow as the inverse; 1e-8 m never ended), each naming the distance. A fixed hand
+    has no law to move; just past both limits the setup plans."""
+    from openup_ompl.planning import MIN_LAW_TRAVEL, MIN_START_DISTANCE
+
+    near = oo.load_scene(_grasp_near_start(default_problem, tmp_path, 0.5 * MIN_START_DISTANCE))
+    with pytest.raises(oo.InvalidProblem, match=r"already at the grasp pose: its palm is 0\.005 m"):
+        oo.GraspPlanningSetup(near)
+    with pytest.raises(oo.InvalidProblem, match="already at the grasp"):
+        oo.GraspPlanningSetup(near, fixed_hand="w")
+    reach = 2.0 * MIN_START_DISTANCE
+    short = oo.load_scene(_grasp_near_start(default_problem, tmp_path, reach))
+    mga = 0.5 * MIN_LAW_TRAVEL / reach
+    with pytest.raises(oo.InvalidProblem, match=r"over 1\.25 mm of the reach \(mga 0\.0625"):
+        oo.GraspPlanningSetup(
+            dataclasses.replace(short, hand_law=short.hand_law.with_options(mga=mga))
+        )
+    assert oo.GraspPlanningSetup(short, fixed_hand="w").checker is not None
+    plan = oo.GraspPlanningSetup(short).solve(seed=1)
+    assert plan.start_palm_distance == pytest.approx(reach, rel=1e-6)
+
+
 @pytest.mark.parametrize("umask", [0o022, 0o027])
 def test_plan_file_has_the_mode_of_a_new_file(
     default_setup: oo.GraspPlanningSetup, tmp_path: Path, umask: int
