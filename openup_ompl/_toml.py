@@ -143,9 +143,20 @@ def string_list(value: Any, where: str) -> list[str]:
     return list(value)
 
 
+#: The largest position coordinate or shape dimension accepted [m]. Coal's mesh checks
+#: lose their precision long before a float overflows (a 1e12 m box far from the robot is
+#: found touching every link), and nothing a robot reaches needs more than a kilometre.
+MAX_EXTENT = 1e3
+
+
 def pose(value: Any, where: str) -> np.ndarray:
-    """A pose ``[x, y, z, qx, qy, qz, qw]`` with a unit quaternion (tolerance 1e-3)."""
+    """A pose ``[x, y, z, qx, qy, qz, qw]`` with a unit quaternion (tolerance 1e-3) and a
+    position within :data:`MAX_EXTENT` of the origin along each axis."""
     array = vector(value, where, 7)
+    if np.any(np.abs(array[:3]) > MAX_EXTENT):
+        raise ConfigError(
+            where, value, f"[x, y, z, qx, qy, qz, qw] with |x|, |y|, |z| <= {MAX_EXTENT:g} m"
+        )
     norm = float(np.linalg.norm(array[3:]))
     if abs(norm - 1.0) > 1e-3:
         raise ConfigError(

@@ -86,13 +86,18 @@ class Shape:
         pose = _toml.pose(_toml.require(table, "pose", where), f"{where}.pose")
         if shape == "box":
             size = _toml.vector(_toml.require(table, "size", where), f"{where}.size", 3)
-            if np.any(size <= 0):
-                raise ConfigError(f"{where}.size", table["size"], "three positive lengths [m]")
+            if np.any(size <= 0) or np.any(size > _toml.MAX_EXTENT):
+                raise ConfigError(
+                    f"{where}.size",
+                    table["size"],
+                    f"three positive lengths [m], at most {_toml.MAX_EXTENT:g}",
+                )
             return cls(name, shape, pose, size=size, raw=dict(table), **physics)
-        radius = _toml.number(_toml.require(table, "radius", where), f"{where}.radius", low=1e-6)
+        extent = {"low": 1e-6, "high": _toml.MAX_EXTENT}
+        radius = _toml.number(_toml.require(table, "radius", where), f"{where}.radius", **extent)
         if shape == "sphere":
             return cls(name, shape, pose, radius=radius, raw=dict(table), **physics)
-        length = _toml.number(_toml.require(table, "length", where), f"{where}.length", low=1e-6)
+        length = _toml.number(_toml.require(table, "length", where), f"{where}.length", **extent)
         return cls(name, shape, pose, radius=radius, length=length, raw=dict(table), **physics)
 
     @property

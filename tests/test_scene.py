@@ -143,6 +143,18 @@ BAD_EDITS = {
     "unknown shape": ('shape = "cylinder"', 'shape = "cone"', "object.shape"),
     "negative size": ("size = [0.04, 0.4, 0.22]", "size = [0.04, -0.4, 0.22]", "obstacles[1].size"),
     "negative radius": ("radius = 0.03", "radius = -0.03", "object.radius"),
+    # Past MAX_EXTENT Coal's mesh checks lose their precision (1e12 m touches every link).
+    "box beyond a kilometre": (
+        "size = [0.04, 0.4, 0.22]",
+        "size = [0.04, 1e300, 0.22]",
+        "obstacles[1].size",
+    ),
+    "radius beyond a kilometre": ("radius = 0.03", "radius = 1e12", "object.radius"),
+    "object beyond a kilometre": (
+        "pose = [0.6, 0.0, 0.06, 0.0, 0.0, 0.0, 1.0]",
+        "pose = [0.6, 2e3, 0.06, 0.0, 0.0, 0.0, 1.0]",
+        "object.pose",
+    ),
     "missing grasp": ("[grasp]", "[grab]", "grasp"),
     "missing robot": ('robot = "panda"', "", "bad_scene.toml: robot"),
     "u above 1": ("u = 0.3", "u = 1.5", "hand.u"),
