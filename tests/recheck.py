@@ -97,7 +97,13 @@ def recheck_plan(plan: dict[str, Any], finer: int = 10, resolution: float = 0.01
         return pin.updateFramePlacement(model, data, palm)
 
     def law_hand(q: np.ndarray) -> np.ndarray:
-        d = float(np.linalg.norm(palm_pose(q).translation - grasp.translation))
+        # Algorithm 1's D: the palm's distance to the grasp, plus (the CONTRACT's
+        # "weighted" variant) rotation_weight times the angle between their orientations.
+        placement = palm_pose(q)
+        d = float(np.linalg.norm(placement.translation - grasp.translation))
+        if law.get("distance", "translation") == "weighted":
+            angle = float(np.linalg.norm(pin.log3(grasp.rotation.T @ placement.rotation)))
+            d += law["rotation_weight"] * angle
         d /= law["start_palm_distance"]
         return np.clip(paper_open_hand(d, law), lower, upper)
 

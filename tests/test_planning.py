@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import inspect
+import json
 import math
 import os
 import stat
@@ -14,7 +15,7 @@ import pinocchio as pin
 import pytest
 from ompl import geometric as og
 from ompl import util as ompl_util
-from recheck import assert_plan_rechecks, solved_and_rechecked
+from recheck import assert_plan_rechecks, recheck_plan, solved_and_rechecked
 
 import openup_ompl as oo
 from openup_ompl.benchmark import default_problems_dir
@@ -69,6 +70,22 @@ def test_simplified_plan_rechecks(default_setup: oo.GraspPlanningSetup, tmp_path
     """OMPL's simplifier keeps the plan valid; the hand is re-derived from the law."""
     plan = default_setup.solve(time_limit=5.0, planner="ikbirrt", seed=4, simplify=True)
     assert_plan_rechecks(plan, tmp_path)
+
+
+def test_weighted_distance_plans_recheck(tmp_path: Path) -> None:
+    """With ``distance = "weighted"`` (the rotation counted in Algorithm 1's D) the plan
+    re-checks, and the re-check reads the distance from the file: told the translation
+    alone, it finds the hand off the law."""
+    problem = oo.load_scene(oo.default_scene_path().parent / "lwa3_sdh_can.toml")
+    weighted = dataclasses.replace(
+        problem, hand_law=problem.hand_law.with_options(distance="weighted")
+    )
+    plan = oo.GraspPlanningSetup(weighted).solve(seed=2)
+    assert_plan_rechecks(plan, tmp_path)
+    data = json.loads(plan.save(tmp_path / "weighted.json").read_text())
+    assert data["hand_law"]["distance"] == "weighted"
+    data["hand_law"]["distance"] = "translation"
+    assert recheck_plan(data).hand_error > 1e-3
 
 
 @pytest.mark.slow
