@@ -112,9 +112,15 @@ class UnreachableGrasp(InvalidProblem):
                 f"reachable only in collision ({in_collision} IK solutions with the hand at"
                 f" its grasp opening, all colliding or closer than {margin * 1e3:.3g} mm{example})"
             )
+            message = f"grasp pose {self.pose} is {why} after {attempts} IK restarts"
         else:
-            why = "out of reach (no IK solution)"
-        super().__init__(f"grasp pose {self.pose} is {why} after {attempts} IK restarts")
+            # Random restarts can miss a pose reachable only in a sliver of joint space
+            # (a Panda pose behind its base, its elbow near a limit: 2 of 40,000 converged).
+            message = (
+                f"grasp pose {self.pose} is out of reach (no IK solution) after {attempts} IK"
+                " restarts, or reachable only in a sliver of joint space they did not find"
+            )
+        super().__init__(message)
 
 
 class PlanningFailed(OpenUpError):
