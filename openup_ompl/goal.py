@@ -223,9 +223,14 @@ class IKGoalRegion(ob.GoalSampleableRegion):
         self._n = goal.checker.robot.arm_idx.size
         # Pregrasp state (bytes) -> its retreat, grasp first; grasp state (bytes) -> same.
         self._retreats: dict[bytes, list[np.ndarray]] = {}
+        #: Goals drawn by planners, and the checker's motion count at the last draw.
+        self.draws = 0
+        self.motions_at_draw = 0
         goal.ensure_solution()
 
     def sampleGoal(self, state: ob.State) -> None:  # noqa: N802 - OMPL's name
+        self.draws += 1
+        self.motions_at_draw = self.goal.checker.motions_checked
         arm = self.goal.sample(max_restarts=5)
         if arm is None:
             solutions = self.goal.solutions

@@ -8,6 +8,8 @@ import json
 import math
 import os
 import stat
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -70,6 +72,58 @@ def test_simplified_plan_rechecks(default_setup: oo.GraspPlanningSetup, tmp_path
     """OMPL's simplifier keeps the plan valid; the hand is re-derived from the law."""
     plan = default_setup.solve(time_limit=5.0, planner="ikbirrt", seed=4, simplify=True)
     assert_plan_rechecks(plan, tmp_path)
+
+
+#: Run in a fresh process, OMPL's generator seeded first (as the command line does): the
+#: drawer scene with RRTConnect, by name (restarted when stuck) or as a plain instance.
+_DRAWER_RUN = """
+import json, sys
+from openup_ompl.executor import seed_ompl
+seed_ompl(4)
+import openup_ompl as oo
+from ompl import geometric as og
+setup = oo.GraspPlanningSetup(oo.load_scene(sys.argv[1]))
+planner = "rrtconnect"
+if sys.argv[2] == "instance":
+    planner = og.RRTConnect(setup.space_information)
+    planner.setRange(setup.planner_range)
+try:
+    plan = setup.solve(4.0, planner=planner, seed=4)
+except oo.PlanningFailed:
+    print(json.dumps(None))
+else:
+    plan.save(sys.argv[3])
+    print(json.dumps(plan.stats))
+"""
+
+
+@pytest.mark.slow  # two fresh processes, one waiting out its 4 s limit
+def test_rrtconnect_stuck_on_one_goal_restarts(tmp_path: Path) -> None:
+    """OMPL's RRTConnect draws a new goal only as its goal tree grows: on the drawer
+    scene, seed 4, its first pregrasp goal never grows and a plain instance waits out the
+    limit. By name the setup restarts it after STALL_MOTIONS motions without a goal drawn,
+    and the plan it then finds re-checks."""
+    runs = {}
+    for mode in ("name", "instance"):
+        done = subprocess.run(
+            [
+                sys.executable,
+                "-c",
+                _DRAWER_RUN,
+                str(SCENES / "panda_drawer.toml"),
+                mode,
+                str(tmp_path / f"{mode}.json"),
+            ],
+            capture_output=True,
+            text=True,
+            timeout=300,
+            check=True,
+        )
+        runs[mode] = json.loads(done.stdout.strip().splitlines()[-1])
+    assert runs["instance"] is None
+    assert runs["name"]["restarts"] >= 1
+    result = recheck_plan(json.loads((tmp_path / "name.json").read_text()))
+    assert result.colliding == [] and result.position_error <= 1e-3
 
 
 def test_weighted_distance_plans_recheck(tmp_path: Path) -> None:
