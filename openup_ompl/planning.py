@@ -451,7 +451,9 @@ class GraspPlanningSetup:
         Args:
             time_limit: Planning time [s] (``None``: the options').
             planner: A name from :data:`PLANNERS` or an ``ob.Planner`` built on
-                :attr:`space_information` (``None``: the options').
+                :attr:`space_information` (``None``: the options'). ``"rrtconnect"`` by
+                name is restarted whenever :data:`STALL_MOTIONS` motions pass without a
+                goal drawn (``plan.stats["restarts"]``); an instance runs as given.
             seed: Seeds IK and goal sampling, and IKBiRRT entirely (same seed, same
                 path). OMPL's own planners draw from OMPL's process-wide generator, which
                 only ``ompl.util.RNG.setSeed`` before any OMPL object fixes (the command
