@@ -580,10 +580,12 @@ def _plan(args: argparse.Namespace, scene: Path):  # type: ignore[no-untyped-def
 
 
 def _summary(plan) -> str:  # type: ignore[no-untyped-def]
+    restarts = plan.stats.get("restarts", 0)
+    restarted = f", {restarts} restart{'s' * (restarts != 1)}" if restarts else ""
     return (
         f"{plan.status.lower()} by {plan.planner} in {plan.solve_time_s * 1e3:.0f} ms "
         f"(seed {plan.seed}, u = {plan.law.u:g}, {plan.waypoints.shape[0]} waypoints, "
-        f"{plan.path.shape[0]} states)"
+        f"{plan.path.shape[0]} states{restarted})"
     )
 
 

@@ -175,3 +175,18 @@ def test_help_shows_no_markup_and_the_defaults(tmp_path):
     top = run_cli("--help", cwd=tmp_path).stdout
     assert "``" not in top and "robustness" in top
     assert "(default: 5.0)" in run_cli("plan", "--help", cwd=tmp_path).stdout
+
+
+def test_summary_line_counts_restarts() -> None:
+    """The command's one-line summary names the restarts of a restarted rrtconnect run
+    (none said when there were none, and none for a planner that is not restarted)."""
+    from openup_ompl.__main__ import _summary
+
+    setup = ou.GraspPlanningSetup(ou.load_scene(ou.default_scene_path()))
+    plan = setup.solve(planner="rrtconnect", seed=1)
+    assert plan.stats["restarts"] == 0 and "restart" not in _summary(plan)
+    plan.stats["restarts"] = 1
+    assert _summary(plan).endswith("states, 1 restart)")
+    plan.stats["restarts"] = 3
+    assert _summary(plan).endswith("states, 3 restarts)")
+    assert "restarts" not in setup.solve(planner="ikbirrt", seed=1).stats
