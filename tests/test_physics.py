@@ -339,9 +339,29 @@ def test_physics_judge_executes_against_the_true_object():
     plan = setup.solve(time_limit=5.0, planner="ikbirrt", seed=1)
     held = physics_judge(setup, plan, problem)
     assert held["success"], held["verdict"]
+    assert (held["dx"], held["dy"], held["yaw"]) == (0.0, 0.0, 0.0)
     missed = physics_judge(setup, plan, displaced(problem, 0.15, 0.0))
     assert not missed["success"]
     assert missed["cause"] == "no contact"
+    # The trial reports the truth's offset from the plan's object (the world holds the
+    # truth, so the rollout's own offset was 0).
+    assert missed["dx"] == pytest.approx(0.15) and missed["dy"] == pytest.approx(0.0)
+
+
+def test_physics_closed_loop_keeps_the_trials_seeds(tmp_path):
+    """A physics closed loop records each trial's own seed and the truth's offset from the
+    estimate, not the rollout's jitter seed and its zero offset."""
+    from openup_ompl.perception.closed_loop import ClosedLoopOptions, closed_loop
+    from openup_ompl.physics.sweep import physics_judge
+
+    problem = ou.load_scene(SCENES / "panda_can.toml")
+    options = ClosedLoopOptions(
+        policies=("0",), noises=(1.0,), distances=(0.6,), trials=2, first_seed=5
+    )
+    records = closed_loop(problem, options, judge=physics_judge)
+    assert [r["seed"] for r in records] == [5, 6]
+    planned = [r for r in records if r["planned"]]
+    assert planned and all(abs(r["dx"]) + abs(r["dy"]) > 0.0 for r in planned)
 
 
 def test_execute_plan_takes_a_plan_and_checks_seed_and_options():

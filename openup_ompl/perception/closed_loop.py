@@ -33,7 +33,7 @@ from openup_ompl.perception.noise import NoiseOptions
 from openup_ompl.perception.perceive import at_estimate, perceive
 from openup_ompl.planning import check_planner, check_time_limit
 from openup_ompl.robustness import check_seeds, execute
-from openup_ompl.scene import Problem
+from openup_ompl.scene import Problem, Shape
 
 if TYPE_CHECKING:
     from openup_ompl.plan import Plan
@@ -140,15 +140,20 @@ class ClosedLoopOptions:
         check_time_limit(self.time_limit, "time")
 
 
+def planar_offset(estimate: Shape, true: Shape) -> tuple[float, float, float]:
+    """The true object's planar offset ``(dx, dy)`` [m] and yaw [rad] from the estimate."""
+    dx, dy = (true.pose[:2] - estimate.pose[:2]).tolist()
+    relative = estimate.placement.rotation.T @ true.placement.rotation
+    return dx, dy, float(math.atan2(relative[1, 0], relative[0, 0]))
+
+
 def kinematic_judge(setup: GraspPlanningSetup, plan: Plan, truth: Problem) -> dict[str, Any]:
     """:func:`openup_ompl.robustness.execute` against the true object: its planar offset
     and yaw from the estimate (the estimate's height and tilt errors are kept: the judge
     is planar, as the paper's experiment is)."""
     estimate, true = setup.problem.object, truth.object
     assert estimate is not None and true is not None
-    dx, dy = (true.pose[:2] - estimate.pose[:2]).tolist()
-    relative = estimate.placement.rotation.T @ true.placement.rotation
-    yaw = float(math.atan2(relative[1, 0], relative[0, 0]))
+    dx, dy, yaw = planar_offset(estimate, true)
     torsion = setup.problem.robot.spec.torsion
     return execute(setup, plan, dx, dy, yaw, torsion=torsion)[0]
 
@@ -221,7 +226,9 @@ def closed_loop(
                         )
                         continue
                     trial = judge(setup, plan, problem)
-                    records.append({**record, **trial, "planned": True})
+                    # The loop's own fields (the trial's seed, policy, u) win over the
+                    # judge's (a rollout's own jitter seed, say).
+                    records.append({**trial, **record, "planned": True})
                 if progress is not None:
                     progress(f"noise {noise:g}, distance {distance:g} m, seed {seed} done")
     return records

@@ -95,13 +95,18 @@ def physics_judge(setup: GraspPlanningSetup, plan: Plan, truth: Problem) -> dict
         failed trial with ``cause`` ``"diverged"``.
     """
     from openup_ompl.exceptions import SimulationDiverged
+    from openup_ompl.perception.closed_loop import planar_offset
     from openup_ompl.physics.rollout import Rollout
 
-    assert truth.object is not None
+    estimate, true = setup.problem.object, truth.object
+    assert estimate is not None and true is not None
     data = plan.to_dict()
-    data["scene"] = {**data["scene"], "object": dict(truth.object.raw)}
+    data["scene"] = {**data["scene"], "object": dict(true.raw)}
+    # The world holds the truth, so the rollout's own offset is 0; the trial reports the
+    # truth's planar offset from the estimate, as the kinematic judge does.
+    dx, dy, yaw = planar_offset(estimate, true)
     try:
         record = Rollout(data).run((0.0, 0.0, 0.0), frames=False).to_dict(False)
     except SimulationDiverged as error:
-        return _diverged(error)
-    return physics_trial(record)
+        return {**_diverged(error), "dx": dx, "dy": dy, "yaw": yaw}
+    return {**physics_trial(record), "dx": dx, "dy": dy, "yaw": yaw}
