@@ -18,7 +18,7 @@ from openup_ompl._model import frame_id
 from openup_ompl.exceptions import ConfigError, FrameNotFound
 from openup_ompl.hand_law import HandLaw
 from openup_ompl.ik import MAX_POSITION_TOLERANCE, MAX_ROTATION_TOLERANCE
-from openup_ompl.scene import Problem, Shape
+from openup_ompl.scene import Problem, Shape, check_unique_names
 from openup_ompl.urdf import urdf_model
 
 PLAN_FORMAT = "openup-plan/1"
@@ -375,6 +375,10 @@ class PlanFile:
             for i, table in enumerate(raw_obstacles)
         )
         raw_object = scene.get("object")
+        shape = None
+        if raw_object is not None:
+            shape = Shape.from_table(raw_object, f"{where}scene.object", is_object=True)
+        check_unique_names(obstacles, shape, f"{where}scene: obstacle name")
         for key in ("planner", "status"):
             if key in data:
                 _toml.string(data[key], f"{where}{key}")
@@ -407,9 +411,7 @@ class PlanFile:
             grasp_pose=grasp_pose,
             path=path,
             obstacles=obstacles,
-            object=None
-            if raw_object is None
-            else Shape.from_table(raw_object, f"{where}scene.object", is_object=True),
+            object=shape,
             contents=data,
         )
 

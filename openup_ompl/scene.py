@@ -4,6 +4,7 @@ obstacles. Every table rejects keys it does not know, naming the nearest valid o
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -190,6 +191,19 @@ def demo_scene_path() -> Path:
     return data_dir("scenes") / "lwa3_sdh_can.toml"
 
 
+def check_unique_names(obstacles: Sequence[Shape], obj: Shape | None, where: str) -> None:
+    """Refuse a scene where two shapes (the object included) share a name: collision pairs,
+    physics bodies and contact reports are named after them.
+
+    Raises:
+        ConfigError: Naming ``where`` and the first repeated name.
+    """
+    names = [shape.name for shape in obstacles] + ([obj.name] if obj else [])
+    duplicate = next((n for n in names if names.count(n) > 1), None)
+    if duplicate is not None:
+        raise ConfigError(where, duplicate, "names unique within the scene")
+
+
 def load_scene(path: str | Path, robot: Robot | None = None) -> Problem:
     """Load a scene TOML (README, Files: Scene) into a :class:`Problem`.
 
@@ -241,8 +255,5 @@ def load_scene(path: str | Path, robot: Robot | None = None) -> Problem:
         if "object" in raw
         else None
     )
-    names = [shape.name for shape in obstacles] + ([obj.name] if obj else [])
-    duplicate = next((n for n in names if names.count(n) > 1), None)
-    if duplicate is not None:
-        raise ConfigError(f"{where}: obstacle name", duplicate, "names unique within the scene")
+    check_unique_names(obstacles, obj, f"{where}: obstacle name")
     return Problem(robot, start, grasp_pose, law, obstacles, obj, path)

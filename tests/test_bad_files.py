@@ -83,6 +83,13 @@ BAD_PLANS: dict[str, tuple[Mutation, str]] = {
     "scene missing": (_drop("scene"), "scene"),
     "obstacles a string": (_set("scene", "obstacles", value="x"), "scene.obstacles"),
     "negative object radius": (_set("scene", "object", "radius", value=-1), "scene.object.radius"),
+    # MuJoCo's compiler refused the repeated body name with a traceback (exit 1).
+    "obstacle named like the object": (
+        lambda data: data["scene"]["obstacles"].append(
+            {**data["scene"]["obstacles"][0], "name": data["scene"]["object"]["name"]}
+        ),
+        "scene: obstacle name",
+    ),
     "law u NaN": (_set("hand_law", "u", value=float("nan")), "hand_law.u"),
     "law mga 0": (_set("hand_law", "mga", value=0.0), "hand_law.mga"),
     "law missing": (_drop("hand_law"), "hand_law"),
