@@ -30,6 +30,9 @@ GRASP_KEYS = ("pose",)
 #: The hand-law fields a scene's ``[hand]`` may override (the fixed preshape is a planning
 #: option, not part of a scene).
 SCENE_LAW_FIELDS = tuple(name for name in TABLE_FIELDS if name != "fixed")
+#: The lightest object [kg] physics accepts (MuJoCo refuses a body lighter than its
+#: ``mjMINVAL`` while compiling, blaming the model).
+MIN_MASS = 1e-6
 #: The object's mass [kg] and Coulomb friction when the scene gives none (physics only).
 OBJECT_MASS = 0.1
 OBJECT_FRICTION = 0.6
@@ -75,7 +78,7 @@ class Shape:
         physics: dict[str, Any] = {}
         if is_object:
             physics["mass"] = _toml.number(
-                table.get("mass", OBJECT_MASS), f"{where}.mass", low=1e-6
+                table.get("mass", OBJECT_MASS), f"{where}.mass", low=MIN_MASS
             )
         elif "mass" in table:
             raise ConfigError(f"{where}.mass", table["mass"], "no mass: obstacles are fixed")

@@ -194,6 +194,13 @@ def test_bad_offset_and_options_raise_config_errors(panda_plan):
         PhysicsOptions(arm_kp=-1.0)
     with pytest.raises(ConfigError, match="speed"):
         PhysicsOptions(speed=2.0)
+    # A bool or a string is not a displacement (True was taken as 1 m).
+    for offset in ((True, 0.0, 0.0), ("0.01", 0.0, 0.0)):
+        with pytest.raises(ConfigError, match="object offset"):
+            execute_plan(panda_plan, offset)
+    # MuJoCo refuses a lighter body while compiling, and blamed the URDF.
+    with pytest.raises(ConfigError, match="object_mass"):
+        PhysicsOptions(object_mass=1e-12)
 
 
 @pytest.mark.parametrize(

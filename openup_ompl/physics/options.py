@@ -7,6 +7,7 @@ from dataclasses import dataclass, fields
 
 from openup_ompl._toml import is_finite
 from openup_ompl.exceptions import ConfigError
+from openup_ompl.scene import MIN_MASS
 
 __all__ = ["PHASE_MAX", "PhysicsOptions"]
 
@@ -165,6 +166,10 @@ class PhysicsOptions:
                 "PhysicsOptions.contact_timeconst",
                 self.contact_timeconst,
                 f"at least twice the timestep ({2 * self.timestep:g} s)",
+            )
+        if self.object_mass is not None and self.object_mass < MIN_MASS:
+            raise ConfigError(
+                "PhysicsOptions.object_mass", self.object_mass, f"a mass >= {MIN_MASS:g} kg"
             )
         for name, most, unit in LARGEST:
             value = getattr(self, name)

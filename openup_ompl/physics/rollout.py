@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from openup_ompl._toml import is_number
 from openup_ompl.exceptions import ConfigError, OpenUpError, SimulationDiverged
 from openup_ompl.executor import check_generator_seed
 from openup_ompl.grasp import closing_limits
@@ -68,8 +69,8 @@ def check_offset(offset: Sequence[float]) -> tuple[float, float, float]:
             ``dy`` beyond :data:`OFFSET_MAX`, or ``yaw`` outside ``[-pi, pi]``.
     """
     try:
-        if isinstance(offset, (str, bytes)):
-            raise TypeError
+        if isinstance(offset, (str, bytes)) or not all(is_number(x) for x in offset):
+            raise TypeError  # a string or a bool is not a displacement
         values = tuple(float(x) for x in offset)
     except (TypeError, ValueError):
         raise ConfigError("object offset", offset, "three numbers DX DY YAW [m, m, rad]") from None
