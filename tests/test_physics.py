@@ -382,3 +382,11 @@ def test_execute_plan_takes_a_plan_and_checks_seed_and_options():
             execute_plan(plan, **kwargs)
     record = execute_plan(plan, (0.0, 0.0, 0.0), frames=False)
     assert record.success
+
+
+def test_an_object_placed_inside_an_obstacle_is_not_blamed_on_the_hand(panda_plan):
+    """An offset that puts the can 5 cm into the wall jams it during the settle, before the
+    robot moves: the verdict says it lay there, not that the hand forced it (it did)."""
+    record = execute_plan(panda_plan, (-0.15, 0.0, 0.0), frames=False)
+    assert record.cause == "jammed"
+    assert "before the robot moved" in record.verdict and "the hand forced" not in record.verdict

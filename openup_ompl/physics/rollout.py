@@ -534,6 +534,13 @@ class Rollout:
                 f"held: {name} lifted {object_rise * 1e3:.0f} mm, moved {drift_m * 1e3:.1f} mm /"
                 f" {math.degrees(drift_rad):.1f} deg in the hand over the hold"
             )
+        elif cause == "jammed" and state["pressed_phase"] == "settle":
+            # Before the robot moves: the object was placed overlapping an obstacle (an
+            # offset into a wall, say), not pushed there by the hand.
+            verdict = (
+                f"failed (jammed): {name} lay {state['pressed'] * 1e3:.0f} mm inside an"
+                " obstacle during the settle, before the robot moved (placed there)"
+            )
         elif cause == "jammed":
             verdict = (
                 f"failed (jammed): the hand forced {name} {state['pressed'] * 1e3:.0f} mm into"
