@@ -201,6 +201,9 @@ def test_bad_offset_and_options_raise_config_errors(panda_plan):
     # MuJoCo refuses a lighter body while compiling, and blamed the URDF.
     with pytest.raises(ConfigError, match="object_mass"):
         PhysicsOptions(object_mass=1e-12)
+    for solimp in ((0.95, 0.99, 0.001, -0.5, 2.0), (0.95, 0.99, 0.001, 0.5, -2.0)):
+        with pytest.raises(ConfigError, match="contact_solimp"):
+            PhysicsOptions(contact_solimp=solimp)
 
 
 @pytest.mark.parametrize(

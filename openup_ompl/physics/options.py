@@ -134,11 +134,16 @@ class PhysicsOptions:
             and all(is_finite(x) for x in solimp)
             and 0 < solimp[0] <= solimp[1] < 1
             and solimp[2] > 0
+            and 0 < solimp[3] < 1
+            and solimp[4] >= 1
         ):
+            # MuJoCo's impedance: d0 to dwidth over width [m], a sigmoid whose midpoint lies
+            # in (0, 1) and whose power is at least 1 (MuJoCo clamps other values silently).
             raise ConfigError(
                 "PhysicsOptions.contact_solimp",
                 solimp,
-                "(d0, dwidth, width, mid, power), 0 < d0 <= dwidth < 1",
+                "(d0, dwidth, width, mid, power), 0 < d0 <= dwidth < 1, width > 0,"
+                " 0 < mid < 1, power >= 1",
             )
         for item in fields(self):
             if item.name == "contact_solimp":
