@@ -380,3 +380,19 @@ def test_closed_loop_sweep_refuses_values_it_would_count_twice(changes, named):
     with pytest.raises(ConfigError, match=f"^{named}"):
         ClosedLoopOptions(**changes)
     ClosedLoopOptions(camera=CameraOptions(position=(1.2, -0.2, 0.6)), distances=(0.8,))
+
+
+def test_an_explicit_camera_position_excludes_an_orbit():
+    """``position`` and ``distance``/``elevation``/``azimuth`` in one table is refused (the
+    orbit was silently ignored); an override of either kind replaces the scene's other
+    kind (the Panda scene's [camera] sets an elevation)."""
+    from openup_ompl.perception.camera import CameraOptions, camera_of_scene
+
+    with pytest.raises(ou.ConfigError, match="camera.distance"):
+        CameraOptions.from_table({"position": [1.0, 0.0, 0.8], "distance": 1.0})
+    problem = ou.load_scene(ou.default_scene_path())
+    assert camera_of_scene(problem).elevation == 60.0
+    placed = camera_of_scene(problem, {"position": [1.0, 0.0, 0.8]})
+    assert placed.position == (1.0, 0.0, 0.8) and placed.elevation != 60.0
+    orbit = camera_of_scene(problem, {"distance": 0.9})
+    assert orbit.position is None and orbit.distance == 0.9 and orbit.elevation == 60.0

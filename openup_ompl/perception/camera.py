@@ -23,6 +23,10 @@ from openup_ompl.scene import Problem
 __all__ = ["CameraOptions", "DepthCamera", "DepthView"]
 
 
+#: The keys that place the camera on an orbit around the object (without ``position``).
+ORBIT_KEYS = ("distance", "elevation", "azimuth")
+
+
 @dataclass(frozen=True)
 class CameraOptions:
     """Pose, intrinsics and resolution of the depth camera.
@@ -98,6 +102,15 @@ class CameraOptions:
         """Options from a scene's ``[camera]`` table or ``--camera KEY=VALUE`` pairs (the
         keys are the attribute names)."""
         _toml.check_keys(table, {f.name for f in fields(cls)}, where)
+        orbit = sorted(set(table) & set(ORBIT_KEYS))
+        if "position" in table and orbit:
+            # An explicit position leaves nothing for these to set: they would be ignored.
+            raise ConfigError(
+                f"{where}.{orbit[0]}",
+                table[orbit[0]],
+                "no distance, elevation or azimuth"
+                " with an explicit position (the position sets the view)",
+            )
         values: dict[str, Any] = {}
         for key, value in table.items():
             if key in ("position", "target"):
@@ -176,7 +189,12 @@ def camera_of_scene(problem: Problem, overrides: Mapping[str, Any] | None = None
         table = _toml.read_toml(problem.path, "scene file").get("camera", {})
         if not isinstance(table, dict):
             raise ConfigError(f"{problem.path.name}: camera", table, "a [camera] table")
-    return CameraOptions.from_table({**table, **(overrides or {})})
+    overrides = dict(overrides or {})
+    if "position" in overrides:  # the override's explicit view replaces the scene's orbit
+        table = {k: v for k, v in table.items() if k not in ORBIT_KEYS}
+    elif set(overrides) & set(ORBIT_KEYS):  # and an orbit the scene's position
+        table = {k: v for k, v in table.items() if k not in ("position", "target")}
+    return CameraOptions.from_table({**table, **overrides})
 
 
 def camera_rotation(position: np.ndarray, target: np.ndarray) -> np.ndarray:
