@@ -243,6 +243,28 @@ class TooFewPoints(PerceptionError):
         )
 
 
+class DegenerateFit(PerceptionError):
+    """The superquadric fit collapsed onto one face of the object: a half-size sits at the
+    fit's lower bound, the object's extent along it unseen (a camera looking down on a
+    can sees its top; the centre is then placed up to half its length off, with a
+    sub-millimetre covariance).
+
+    Attributes:
+        sizes: The fitted half-sizes [m].
+        bound: The fit's lower bound of a half-size [m].
+    """
+
+    def __init__(self, sizes: Sequence[float], bound: float) -> None:
+        self.sizes = [float(x) for x in sizes]
+        self.bound = float(bound)
+        shown = ", ".join(f"{x * 1e3:.1f}" for x in self.sizes)
+        super().__init__(
+            f"the superquadric fit collapsed onto one face of the object: half-sizes [{shown}]"
+            f" mm, one at the fit's bound {self.bound * 1e3:g} mm (the view shows no extent"
+            " along it): expected a view of more than one face (a lower camera)"
+        )
+
+
 class SimulationDiverged(OpenUpError):
     """The physics simulation became unstable (MuJoCo reported a bad acceleration or a
     non-finite state) during a rollout: its verdict would be meaningless.

@@ -396,3 +396,21 @@ def test_an_explicit_camera_position_excludes_an_orbit():
     assert placed.position == (1.0, 0.0, 0.8) and placed.elevation != 60.0
     orbit = camera_of_scene(problem, {"distance": 0.9})
     assert orbit.position is None and orbit.distance == 0.9 and orbit.elevation == 60.0
+
+
+def test_a_fit_collapsed_onto_one_face_is_refused():
+    """From 75 degrees above, the LWA3's can shows its top face: the fit shrinks its
+    height to the bound and put the centre 79 mm too high with a 0.1 mm sigma. That is a
+    DegenerateFit (a PerceptionError: the closed loop counts the view as not seen), naming
+    the half-sizes; the default view of the same can fits it."""
+    from openup_ompl.exceptions import DegenerateFit, PerceptionError
+    from openup_ompl.perception.camera import camera_of_scene
+
+    problem = ou.load_scene(ou.default_scene_path().parent / "lwa3_sdh_can.toml")
+    steep = camera_of_scene(problem, {"elevation": 75.0, "distance": 0.8})
+    with pytest.raises(DegenerateFit, match="collapsed onto one face") as caught:
+        perceive(problem, steep, rng=np.random.default_rng(1))
+    assert isinstance(caught.value, PerceptionError)
+    assert min(caught.value.sizes) <= 1.5 * caught.value.bound
+    seen = perceive(problem, rng=np.random.default_rng(1))
+    assert min(seen.fit.superquadric.sizes) > 5 * caught.value.bound

@@ -19,7 +19,7 @@ import pinocchio as pin
 
 from openup_ompl import _toml
 from openup_ompl._io import make_dir, write_atomic
-from openup_ompl.exceptions import InvalidProblem, ObjectNotVisible, TooFewPoints
+from openup_ompl.exceptions import DegenerateFit, InvalidProblem, ObjectNotVisible, TooFewPoints
 from openup_ompl.perception.camera import (
     CameraOptions,
     DepthCamera,
@@ -106,6 +106,12 @@ def silhouette_of(view: DepthView, noise: NoiseOptions, camera: CameraOptions) -
     )
 
 
+#: A fitted half-size within this factor of ``FitOptions.min_size`` is a collapsed fit
+#: (:class:`DegenerateFit`). The closed loops' views fit half-sizes of 17 mm and more;
+#: a camera 75 degrees above the LWA3's can fits 2.0 mm, its centre 79 mm too high.
+DEGENERATE_FACTOR = 1.5
+
+
 def perceive(
     problem: Problem,
     camera: CameraOptions | None = None,
@@ -134,6 +140,8 @@ def perceive(
     Raises:
         ObjectNotVisible: No point of the object is measured.
         TooFewPoints: Too few for the fit.
+        DegenerateFit: The fit collapsed onto one face (a half-size within
+            :data:`DEGENERATE_FACTOR` of its lower bound).
     """
     noise = noise or NoiseOptions()
     rng = rng if rng is not None else np.random.default_rng(0)
@@ -156,6 +164,9 @@ def perceive(
     shape = silhouette_of(view, noise, cam.options) if silhouette else None
     weights = normal_sigma(cam.position, cam.rotation, noise) if weighted else None
     result = fit_superquadric(cloud.points, fit, shape, weights)
+    bound = (fit or FitOptions()).min_size
+    if float(np.min(result.superquadric.sizes)) <= DEGENERATE_FACTOR * bound:
+        raise DegenerateFit(result.superquadric.sizes.tolist(), bound)
     pose = estimated_pose(result, problem.object)
     u = u_from_covariance(
         result.position_covariance,
