@@ -22,8 +22,8 @@ from ompl import geometric as og
 from openup_ompl import _toml
 from openup_ompl.exceptions import ConfigError, InvalidProblem, PlanningFailed, VerifyFailed
 from openup_ompl.goal import GOAL_THRESHOLD, MAX_RETREAT, GraspGoal, IKGoalRegion
-from openup_ompl.hand_law import HandLaw, palm_distance
-from openup_ompl.ik import MAX_POSITION_TOLERANCE, IKOptions, IKSolver
+from openup_ompl.hand_law import HandLaw
+from openup_ompl.ik import IKOptions, IKSolver
 from openup_ompl.plan import Plan, number_rows
 from openup_ompl.planners.ikbirrt import IKBiRRT, IKBiRRTOptions
 from openup_ompl.robot import Robot
@@ -101,16 +101,6 @@ def arm_state_space(robot: Robot) -> ob.RealVectorStateSpace:
     space.setBounds(bounds)
     return space
 
-
-#: The least distance [m] of the start's palm from the grasp pose (Algorithm 1's
-#: denominator): the loosest goal position tolerance, within which the start is already
-#: at the grasp.
-MIN_START_DISTANCE = MAX_POSITION_TOLERANCE
-#: The least palm travel [m] over which the law may change the hand (``mga`` times the
-#: start's distance). The checks that certify the fingers' motion near the grasp grow as
-#: its inverse: on the LWA3, 2.5 mm (1 cm from the grasp, ``mga`` 0.25) cost 39,000 plan
-#: rows and 1.2 s, 0.25 mm 383,000 rows and 23 s, and 1e-8 m never ended.
-MIN_LAW_TRAVEL = 0.0025
 
 #: The planners made by name that :meth:`GraspPlanningSetup.solve` restarts when their goal
 #: tree is stuck. OMPL's RRTConnect draws a new goal only while its goal tree holds more
@@ -347,7 +337,6 @@ class GraspPlanningSetup:
         self.simple_setup = og.SimpleSetup(space)
         si = self.simple_setup.getSpaceInformation()
         self.space_information = si
-        self._check_reach(problem)
         self.checker = CoupledChecker(
             problem, self.law, resolution=resolution, padding=options.padding
         )
@@ -415,28 +404,6 @@ class GraspPlanningSetup:
         self.goal.rng = np.random.default_rng(check_seed(seed))
         self.goal.solutions[:] = self._initial_solutions
         self.goal_region.forget()
-
-    def _check_reach(self, problem: Problem) -> None:
-        """Refuse a start too close to the grasp for the law (:data:`MIN_START_DISTANCE`,
-        :data:`MIN_LAW_TRAVEL`), before any check is built on that distance."""
-        robot, law = problem.robot, self.law
-        placement = robot.palm_placement(
-            robot.model.createData(), robot.full_q(problem.start, law.c)
-        )
-        rotation_t = problem.grasp.rotation.T if law.distance == "weighted" else None
-        reach = palm_distance(placement, problem.grasp.translation, rotation_t, law.rotation_weight)
-        if reach < MIN_START_DISTANCE:
-            raise InvalidProblem(
-                f"start is already at the grasp pose: its palm is {reach:.3g} m from it "
-                f"(the hand law's {law.distance} distance), under {MIN_START_DISTANCE:g} m"
-            )
-        if law.fixed is None and law.mga * reach < MIN_LAW_TRAVEL:
-            raise InvalidProblem(
-                f"the hand law would move the fingers over {law.mga * reach * 1e3:.3g} mm of "
-                f"the reach (mga {law.mga:g} times the start's {reach:.3g} m from the grasp), "
-                f"under {MIN_LAW_TRAVEL * 1e3:g} mm: the checks near the grasp grow as its "
-                "inverse; start farther from the grasp, raise mga or fix the hand"
-            )
 
     def solve(
         self,

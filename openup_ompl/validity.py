@@ -16,8 +16,9 @@ from ompl import base as ob
 
 from openup_ompl._toml import is_finite, is_integer, is_number
 from openup_ompl.collision import CollisionWorld, ThreadContext
-from openup_ompl.exceptions import ConfigError
-from openup_ompl.hand_law import HandLaw, NormalizedDistance
+from openup_ompl.exceptions import ConfigError, InvalidProblem
+from openup_ompl.hand_law import HandLaw, NormalizedDistance, palm_distance
+from openup_ompl.ik import MAX_POSITION_TOLERANCE
 from openup_ompl.motion_bound import (
     arm_weights,
     body_bounds,
@@ -73,6 +74,15 @@ ARM_TIGHTEN_FLOOR = 0.5
 #: ``PROBE_STRIDE``-th of them against the finest margin (:meth:`CoupledChecker.check_motion`).
 PROBE_MIN_STATES = 24
 PROBE_STRIDE = 8
+#: The least distance [m] of the start's palm from the grasp pose (Algorithm 1's
+#: denominator): the loosest goal position tolerance, within which the start is already
+#: at the grasp.
+MIN_START_DISTANCE = MAX_POSITION_TOLERANCE
+#: The least palm travel [m] over which the law may change the hand (``mga`` times the
+#: start's distance). The checks that certify the fingers' motion near the grasp grow as
+#: its inverse: on the LWA3, 2.5 mm (1 cm from the grasp, ``mga`` 0.25) cost 39,000 plan
+#: rows and 1.2 s, 0.25 mm 383,000 rows and 23 s, and 1e-8 m never ended.
+MIN_LAW_TRAVEL = 0.0025
 #: Accepted motions remembered by :attr:`CoupledChecker.certified` at most.
 CERTIFIED_MAX = 200_000
 #: Collision-free arm states remembered, with their ``d``, at most (see
@@ -100,6 +110,12 @@ class CoupledChecker:
         coarse_levels: Doublings of the padding and of the spacing of the first pass
             over a motion (:data:`COARSE_LEVELS`); ``0`` checks every motion at
             ``resolution`` directly.
+
+    Raises:
+        ConfigError: A bad resolution, padding or number of coarse levels.
+        InvalidProblem: A start too close to the grasp for the law
+            (:data:`MIN_START_DISTANCE`, :data:`MIN_LAW_TRAVEL`), refused before any
+            check is built on that distance.
 
     Attributes:
         paddings: The margins [m] of the levels, widest first: the coarse pass's
@@ -140,6 +156,9 @@ class CoupledChecker:
         self.problem = problem
         self.robot = problem.robot
         self.law = problem.hand_law if law is None else law
+        start_q = self.robot.full_q(problem.start, self.law(1.0))
+        start_placement = self.robot.palm_placement(self.robot.model.createData(), start_q)
+        _check_reach(problem.grasp, start_placement, self.law)
         self.world = CollisionWorld(problem, padding=padding) if world is None else world
         self.resolution = float(resolution)
         # No coarse pass without padding: it would not make a motion check exact.
@@ -158,12 +177,8 @@ class CoupledChecker:
         self.coarse_resolution = self.resolution * 2.0**self._coarse
         self._model = self.robot.model
         self._palm = self.robot.palm_frame_id
-        start_q = self.robot.full_q(problem.start, self.law(1.0))
         self.goal_distance = NormalizedDistance(
-            problem.grasp,
-            self.robot.palm_placement(self._model.createData(), start_q),
-            self.law.distance,
-            self.law.rotation_weight,
+            problem.grasp, start_placement, self.law.distance, self.law.rotation_weight
         )
         self._arm_idx = self.robot.arm_idx
         self._hand_idx = self.robot.hand_idx
@@ -685,6 +700,26 @@ class CoupledChecker:
             levels[hit] += 1
             pending = pending[levels[pending] != level]
         return levels
+
+
+def _check_reach(grasp: pin.SE3, start_placement: pin.SE3, law: HandLaw) -> None:
+    """Refuse a start palm (at ``start_placement``) too close to ``grasp`` for the law:
+    within :data:`MIN_START_DISTANCE`, or, for a law that moves the hand, one whose
+    ``mga`` times that distance is under :data:`MIN_LAW_TRAVEL`."""
+    rotation_t = grasp.rotation.T if law.distance == "weighted" else None
+    reach = palm_distance(start_placement, grasp.translation, rotation_t, law.rotation_weight)
+    if reach < MIN_START_DISTANCE:
+        raise InvalidProblem(
+            f"start is already at the grasp pose: its palm is {reach:.3g} m from it "
+            f"(the hand law's {law.distance} distance), under {MIN_START_DISTANCE:g} m"
+        )
+    if law.fixed is None and law.mga * reach < MIN_LAW_TRAVEL:
+        raise InvalidProblem(
+            f"the hand law would move the fingers over {law.mga * reach * 1e3:.3g} mm of "
+            f"the reach (mga {law.mga:g} times the start's {reach:.3g} m from the grasp), "
+            f"under {MIN_LAW_TRAVEL * 1e3:g} mm: the checks near the grasp grow as its "
+            "inverse; start farther from the grasp, raise mga or fix the hand"
+        )
 
 
 def _selector(indices: np.ndarray) -> slice | np.ndarray:

@@ -304,14 +304,18 @@ def test_start_near_the_grasp_is_refused_before_any_check(
     MIN_START_DISTANCE of it (the loosest goal tolerance) is already there, and a law that
     would move the fingers over less than MIN_LAW_TRAVEL of the reach is refused (its
     checks grow as the inverse; 1e-8 m never ended), each naming the distance. A fixed hand
-    has no law to move; just past both limits the setup plans."""
-    from openup_ompl.planning import MIN_LAW_TRAVEL, MIN_START_DISTANCE
+    has no law to move; just past both limits the setup plans. The coupled checker itself
+    refuses such a start, as a setup builds one."""
+    from openup_ompl.validity import MIN_LAW_TRAVEL, MIN_START_DISTANCE
 
     near = oo.load_scene(_grasp_near_start(default_problem, tmp_path, 0.5 * MIN_START_DISTANCE))
     with pytest.raises(oo.InvalidProblem, match=r"already at the grasp pose: its palm is 0\.005 m"):
         oo.GraspPlanningSetup(near)
     with pytest.raises(oo.InvalidProblem, match="already at the grasp"):
         oo.GraspPlanningSetup(near, fixed_hand="w")
+    # The checker refuses it itself: its motion checks are what would not end.
+    with pytest.raises(oo.InvalidProblem, match="already at the grasp"):
+        oo.CoupledChecker(near)
     reach = 2.0 * MIN_START_DISTANCE
     short = oo.load_scene(_grasp_near_start(default_problem, tmp_path, reach))
     mga = 0.5 * MIN_LAW_TRAVEL / reach
