@@ -36,6 +36,27 @@ MIN_RETREAT_STEP = 1e-3
 MAX_RETREAT = 1.0
 
 
+def check_retreat(
+    length: float,
+    step: float,
+    max_joint_step: float,
+    names: tuple[str, str, str] = ("length", "step", "max_joint_step"),
+) -> tuple[float, float, float]:
+    """A retreat's ``length`` [m] in ``[0, MAX_RETREAT]``, palm ``step`` [m] of at least
+    :data:`MIN_RETREAT_STEP` and positive ``max_joint_step`` [rad], as floats.
+
+    Raises:
+        ConfigError: Naming the bad one by its entry of ``names``.
+    """
+    if not (_toml.is_finite(length) and 0 <= length <= MAX_RETREAT):
+        raise ConfigError(names[0], length, f"a retreat length in [0, {MAX_RETREAT:g}] m")
+    if not (_toml.is_finite(step) and step >= MIN_RETREAT_STEP):
+        raise ConfigError(names[1], step, f"a finite step >= {MIN_RETREAT_STEP:g} m")
+    if not (_toml.is_finite(max_joint_step) and max_joint_step > 0):
+        raise ConfigError(names[2], max_joint_step, "a positive step [rad]")
+    return float(length), float(step), float(max_joint_step)
+
+
 class GraspGoal:
     """The numpy-level goal: IK sampling, the solutions found, the task-space distance.
 
@@ -127,12 +148,7 @@ class GraspGoal:
             ConfigError: ``length`` not in ``[0, MAX_RETREAT]``, ``step`` below
                 :data:`MIN_RETREAT_STEP` or not finite, ``max_joint_step`` not positive.
         """
-        if not (_toml.is_finite(length) and 0 <= length <= MAX_RETREAT):
-            raise ConfigError("length", length, f"a retreat length in [0, {MAX_RETREAT:g}] m")
-        if not (_toml.is_finite(step) and step >= MIN_RETREAT_STEP):
-            raise ConfigError("step", step, f"a finite step >= {MIN_RETREAT_STEP:g} m")
-        if not (_toml.is_finite(max_joint_step) and max_joint_step > 0):
-            raise ConfigError("max_joint_step", max_joint_step, "a positive step [rad]")
+        length, step, max_joint_step = check_retreat(length, step, max_joint_step)
         offset = -step * self.checker.robot.spec.approach
         chain = [root]
         q = root
@@ -208,17 +224,17 @@ class IKGoalRegion(ob.GoalSampleableRegion):
         pregrasp_step: float = PREGRASP_STEP,
         max_joint_step: float = 0.3,
     ) -> None:
-        _toml.number(pregrasp_step, "pregrasp_step", low=MIN_RETREAT_STEP)
-        if _toml.number(max_joint_step, "max_joint_step") <= 0:
-            raise ConfigError("max_joint_step", max_joint_step, "a positive step [rad]")
+        pregrasp, pregrasp_step, max_joint_step = check_retreat(
+            pregrasp, pregrasp_step, max_joint_step, ("pregrasp", "pregrasp_step", "max_joint_step")
+        )
         if not (_toml.is_integer(max_samples) and 1 <= max_samples < 2**31):
             raise ConfigError("max_samples", max_samples, "an integer in [1, 2^31)")
         super().__init__(si)
         self.goal = goal
         self.max_samples = max_samples
-        self.pregrasp = _toml.number(pregrasp, "pregrasp", low=0.0, high=MAX_RETREAT)
-        self.pregrasp_step = float(pregrasp_step)
-        self.max_joint_step = float(max_joint_step)
+        self.pregrasp = pregrasp
+        self.pregrasp_step = pregrasp_step
+        self.max_joint_step = max_joint_step
         self.setThreshold(GOAL_THRESHOLD)
         self._n = goal.checker.robot.arm_idx.size
         # Pregrasp state (bytes) -> its retreat, grasp first; grasp state (bytes) -> same.

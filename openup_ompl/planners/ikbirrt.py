@@ -46,7 +46,7 @@ from ompl import geometric as og
 
 from openup_ompl._toml import is_finite, is_integer, is_number
 from openup_ompl.exceptions import ConfigError
-from openup_ompl.goal import MAX_RETREAT, MIN_RETREAT_STEP, GraspGoal, IKGoalRegion
+from openup_ompl.goal import GraspGoal, IKGoalRegion, check_retreat
 
 
 @dataclass(frozen=True)
@@ -88,17 +88,8 @@ class IKBiRRTOptions:
             )
         if not (is_integer(self.goal_restarts) and self.goal_restarts >= 1):
             raise ConfigError("IKBiRRTOptions.goal_restarts", self.goal_restarts, "an integer >= 1")
-        if not (is_finite(self.retreat) and 0 <= self.retreat <= MAX_RETREAT):
-            raise ConfigError(
-                "IKBiRRTOptions.retreat", self.retreat, f"a distance in [0, {MAX_RETREAT:g}] m"
-            )
-        step = self.retreat_step
-        if not (is_finite(step) and step >= MIN_RETREAT_STEP):
-            raise ConfigError(
-                "IKBiRRTOptions.retreat_step",
-                self.retreat_step,
-                f"a distance >= {MIN_RETREAT_STEP:g} [m]",
-            )
+        names = ("IKBiRRTOptions.retreat", "IKBiRRTOptions.retreat_step", "IKBiRRTOptions.max_step")
+        check_retreat(self.retreat, self.retreat_step, self.max_step, names)
         if self.seed is not None and not (
             isinstance(self.seed, (int, np.integer))
             and not isinstance(self.seed, (bool, np.bool_))
