@@ -464,7 +464,8 @@ class GraspPlanningSetup:
         ik_before = self.ik.calls
         started = time.perf_counter()
         restarts = 0
-        if isinstance(planner, str) and planner.lower() in RESTARTED_PLANNERS:
+        restarting = isinstance(planner, str) and planner.lower() in RESTARTED_PLANNERS
+        if restarting:
             status, restarts = self._solve_restarting(started + float(time_limit))
         else:
             # OMPL's solve(seconds) evaluates a limit of 1 s or more in a thread of its own
@@ -489,7 +490,7 @@ class GraspPlanningSetup:
             "waypoints": int(waypoints.shape[0]),
             "approach_states": approach,
         }
-        if isinstance(planner, str) and planner.lower() in RESTARTED_PLANNERS:
+        if restarting:
             stats["restarts"] = restarts
         if isinstance(instance, IKBiRRT):
             stats.update(

@@ -108,5 +108,7 @@ def physics_judge(setup: GraspPlanningSetup, plan: Plan, truth: Problem) -> dict
     try:
         record = Rollout(data).run((0.0, 0.0, 0.0), frames=False).to_dict(False)
     except SimulationDiverged as error:
-        return {**_diverged(error), "dx": dx, "dy": dy, "yaw": yaw}
-    return {**physics_trial(record), "dx": dx, "dy": dy, "yaw": yaw}
+        trial = _diverged(error)
+    else:
+        trial = physics_trial(record)
+    return {**trial, "dx": dx, "dy": dy, "yaw": yaw}
