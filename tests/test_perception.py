@@ -414,3 +414,25 @@ def test_a_fit_collapsed_onto_one_face_is_refused():
     assert min(caught.value.sizes) <= 1.5 * caught.value.bound
     seen = perceive(problem, rng=np.random.default_rng(1))
     assert min(seen.fit.superquadric.sizes) > 5 * caught.value.bound
+
+
+def test_closed_loop_options_default_to_the_scene_camera():
+    """``ClosedLoopOptions()`` looks with the scene file's ``[camera]``, as the command does:
+    the Panda's can, hidden behind its wall from the built-in 40 degrees, is seen from the
+    scene's 60; the same records as with that camera passed explicitly."""
+    from openup_ompl.perception.camera import camera_of_scene
+    from openup_ompl.perception.closed_loop import ClosedLoopOptions, closed_loop
+
+    problem = ou.load_scene(ROOT / "scenes" / "panda_can.toml")
+    sweep = {"policies": ("0.3",), "noises": (1.0,), "distances": (0.8,), "trials": 1}
+
+    def run(**camera: CameraOptions) -> list[dict]:
+        return closed_loop(problem, ClosedLoopOptions(**sweep, **camera), judge=judged)
+
+    def judged(setup, plan, truth):  # type: ignore[no-untyped-def]
+        return {"success": True}
+
+    default = run()
+    assert [record["seen"] for record in default] == [True]
+    assert default == run(camera=camera_of_scene(problem))
+    assert [record["seen"] for record in run(camera=CameraOptions())] == [False]

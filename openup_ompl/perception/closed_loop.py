@@ -28,7 +28,7 @@ import numpy as np
 
 from openup_ompl._io import make_dir
 from openup_ompl.exceptions import ConfigError, InvalidProblem, PerceptionError, PlanningFailed
-from openup_ompl.perception.camera import CameraOptions, DepthCamera
+from openup_ompl.perception.camera import CameraOptions, DepthCamera, camera_of_scene
 from openup_ompl.perception.noise import NoiseOptions
 from openup_ompl.perception.perceive import at_estimate, perceive
 from openup_ompl.planning import check_planner, check_time_limit
@@ -85,7 +85,9 @@ class ClosedLoopOptions:
         planner: Planner name.
         time_limit: Planning time limit [s].
         camera: Other camera options (``distance`` is swept; with an explicit
-            ``position`` there is one view, and ``distances`` must hold one value).
+            ``position`` there is one view, and ``distances`` must hold one value);
+            ``None``: the scene file's ``[camera]`` table, as ``openup-ompl closed-loop``
+            reads it (:func:`~openup_ompl.perception.camera.camera_of_scene`).
     """
 
     policies: tuple[str, ...] = ("0", "0.3", "1", "covariance")
@@ -95,7 +97,7 @@ class ClosedLoopOptions:
     first_seed: int = 1
     planner: str = "ikbirrt"
     time_limit: float = 5.0  # [s]
-    camera: CameraOptions = dataclasses.field(default_factory=CameraOptions)
+    camera: CameraOptions | None = None
 
     def __post_init__(self) -> None:
         for name in ("policies", "noises", "distances"):
@@ -122,22 +124,31 @@ class ClosedLoopOptions:
         ):
             if len(set(values)) != len(values):
                 raise ConfigError(name, list(getattr(self, name)), "distinct values")
-        if self.camera.position is not None and len(self.distances) > 1:
+        if self.camera is not None:
+            self.cameras(self.camera)
+        check_seeds(self.first_seed, self.trials, MAX_TRIALS, "trials")
+        for name in ("first_seed", "trials"):  # numpy integers accepted, stored as int
+            object.__setattr__(self, name, int(getattr(self, name)))
+        for noise in self.noises:
+            NoiseOptions(scale=noise)
+        check_planner(self.planner)
+        check_time_limit(self.time_limit, "time")
+
+    def cameras(self, camera: CameraOptions) -> list[CameraOptions]:
+        """``camera`` at each of the swept distances.
+
+        Raises:
+            ConfigError: More than one distance for a camera at an explicit position, or
+                a bad distance.
+        """
+        if camera.position is not None and len(self.distances) > 1:
             raise ConfigError(
                 "distances",
                 list(self.distances),
                 "one distance with an explicit camera position (it is not used: every "
                 "distance would be the same view)",
             )
-        check_seeds(self.first_seed, self.trials, MAX_TRIALS, "trials")
-        for name in ("first_seed", "trials"):  # numpy integers accepted, stored as int
-            object.__setattr__(self, name, int(getattr(self, name)))
-        for noise in self.noises:
-            NoiseOptions(scale=noise)
-        for distance in self.distances:
-            dataclasses.replace(self.camera, distance=distance)
-        check_planner(self.planner)
-        check_time_limit(self.time_limit, "time")
+        return [dataclasses.replace(camera, distance=distance) for distance in self.distances]
 
 
 def planar_offset(estimate: Shape, true: Shape) -> tuple[float, float, float]:
@@ -170,10 +181,13 @@ def closed_loop(
     options = options or ClosedLoopOptions()
     if problem.object is None:
         raise ConfigError("scene: object", None, "an [object] to perceive and grasp")
+    cameras = options.cameras(
+        options.camera if options.camera is not None else camera_of_scene(problem)
+    )
     records = []
     for noise in options.noises:
-        for distance in options.distances:
-            camera = DepthCamera(problem, dataclasses.replace(options.camera, distance=distance))
+        for distance, options_at in zip(options.distances, cameras):
+            camera = DepthCamera(problem, options_at)
             for i in range(options.trials):
                 seed = options.first_seed + i
                 base = {"noise": noise, "distance": distance, "seed": seed}
