@@ -329,13 +329,19 @@ def test_show_of_an_execution_writes_the_rollout_pictures(panda_plan, tmp_path):
 
 
 def test_show_of_an_execution_without_frames_names_the_fault(panda_plan, tmp_path):
-    """An execution.json without its frames (a sweep's record) is refused in one line."""
-    record = execute_plan(panda_plan, frames=False)
+    """An execution.json without its frames (a sweep's record) is refused in one line, also
+    when re-saved compactly; one of another version is refused as an execution file, not
+    as a plan."""
+    record = execute_plan(panda_plan, frames=False).to_dict(frames=False)
     path = tmp_path / "execution.json"
-    path.write_text(json.dumps(record.to_dict(frames=False)))
+    path.write_text(json.dumps(record, separators=(",", ":")))
     result = _cli("show", str(path))
     assert result.returncode == 2
     assert len(result.stderr.splitlines()) == 1 and "frames" in result.stderr
+    path.write_text(json.dumps({**record, "format": "openup-execution/9"}))
+    result = _cli("show", str(path))
+    assert result.returncode == 2
+    assert "openup-execution/9" in result.stderr and "openup-execution/1" in result.stderr
 
 
 def test_physics_judge_executes_against_the_true_object():

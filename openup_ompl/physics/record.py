@@ -120,14 +120,15 @@ def write_execution(record: ExecutionRecord, out_dir: str | Path) -> Path:
 
 
 def is_execution(path: str | Path) -> bool:
-    """Whether ``path`` is a JSON file of the execution format (a cheap look, for the
-    command line to pick its reader)."""
+    """Whether ``path`` is a JSON object of the execution format's family (any version,
+    any layout: for the command line to pick its reader, whose errors then name the
+    version it expects)."""
     try:
-        with Path(path).open("rb") as handle:
-            head = handle.read(4096)
-    except OSError:
+        data = json.loads(Path(path).read_bytes())
+    except (OSError, ValueError, RecursionError):
         return False
-    return f'"format": "{EXECUTION_FORMAT}"'.encode() in head
+    family = EXECUTION_FORMAT.split("/")[0] + "/"
+    return isinstance(data, dict) and str(data.get("format", "")).startswith(family)
 
 
 def read_execution(path: str | Path) -> dict[str, Any]:
