@@ -186,7 +186,7 @@ def closed_loop(
     )
     records = []
     for noise in options.noises:
-        for distance, options_at in zip(options.distances, cameras):
+        for distance, options_at in zip(options.distances, cameras, strict=True):
             camera = DepthCamera(problem, options_at)
             for i in range(options.trials):
                 seed = options.first_seed + i

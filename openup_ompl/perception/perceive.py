@@ -193,7 +193,9 @@ def estimated_pose(fit: SuperquadricFit, nominal: Shape) -> np.ndarray:
     if nominal.shape == "sphere":
         rotation = reference
     elif nominal.shape == "cylinder":
-        axis = rotation[:, 2] * np.sign(rotation[:, 2] @ reference[:, 2] or 1.0)
+        assert nominal.radius is not None and nominal.length is not None
+        column = _cylinder_axis(sq.sizes, nominal.radius, nominal.length / 2)
+        axis = rotation[:, column] * np.sign(rotation[:, column] @ reference[:, 2] or 1.0)
         turn = _rotation_between(reference[:, 2], axis)
         rotation = turn @ reference
     else:
@@ -210,6 +212,20 @@ def estimated_pose(fit: SuperquadricFit, nominal: Shape) -> np.ndarray:
                 best, best_angle = candidate, angle
         rotation = best
     return np.asarray(pin.SE3ToXYZQUAT(pin.SE3(rotation, sq.position)), dtype=float)
+
+
+def _cylinder_axis(sizes: np.ndarray, radius: float, half_length: float) -> int:
+    """Which of the superquadric's axes is the cylinder's: the one whose half-size, with
+    the other two as radii, is the nearest to the nominal cylinder's (by ratio). Its own
+    z axis need not be: the fit starts from every principal axis of the cloud, and a
+    superquadric lying across an upright can, square in section, fits a partial view
+    about as well as one along it."""
+    mismatch = [
+        abs(math.log(sizes[k] / half_length))
+        + sum(abs(math.log(sizes[j] / radius)) for j in range(3) if j != k)
+        for k in range(3)
+    ]
+    return int(np.argmin(mismatch))
 
 
 def _rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
