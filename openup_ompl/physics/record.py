@@ -64,8 +64,8 @@ class ExecutionRecord:
         tracking: Largest joint tracking error [rad or m] ``{"reach_arm", "reach_hand",
             "lift_arm"}``.
         final_contacts: Contacts at the end: ``{"link", "with"}`` pairs, sorted.
-        lift: ``{"palm_mm", "object_mm"}``: rise of the palm and of the object over the
-            lift and hold.
+        lift: ``{"palm_mm", "object_mm", "object_peak_mm"}``: rise of the palm and of the
+            object over the lift and hold, and the object's highest rise during them.
         in_hand: Motion of the object in the palm frame from the end of closing to the
             end of the hold: ``{"mm", "deg"}``.
         penetration: Deepest contact penetration [mm] ``{"object_obstacle_mm",

@@ -50,6 +50,9 @@ __all__ = ["Rollout", "check_offset", "closed_targets", "execute_plan", "lift_ro
 #: every shipped arm (MuJoCo resets a state with a huge position, and a run at
 #: ``dx = 1e10`` read "held" before this bound).
 OFFSET_MAX = 1.0
+#: An object whose highest rise over the lift and hold exceeds this [m] and that no link
+#: touches at the end was ``dropped`` (it rose, then left the hand), else ``no contact``.
+DROPPED_RISE = 0.01
 
 
 #: MuJoCo's warnings (``mjtWarning`` names) that it reset an unstable state, and what
@@ -331,6 +334,7 @@ class Rollout:
             "sunk": None,
             "pressed_phase": None,
             "gripped": 0.0,
+            "top": -math.inf,  # the object's highest z [m] over the lift and hold
         }
         tracking = {"reach_arm": 0.0, "reach_hand": 0.0, "lift_arm": 0.0}
 
@@ -350,8 +354,11 @@ class Rollout:
             sim.ctrl[world.actuator] = ctrl
             mujoco.mj_step(model, sim)
             state["step"] += 1
-            if state["sunk"] is None and sim.qpos[world.object_qpos + 2] < floor:
+            height = sim.qpos[world.object_qpos + 2]
+            if state["sunk"] is None and height < floor:
                 state["sunk"] = state["phase"]
+            if state["phase"] in ("lift", "hold") and height > state["top"]:
+                state["top"] = float(height)
             time = state["step"] * dt
             if sim.ncon:
                 pairs = kinds[sim.contact.geom[: sim.ncon]]
@@ -457,6 +464,7 @@ class Rollout:
         in_palm_closed = np.linalg.inv(palm_transform()) @ object_transform()
         palm_z0 = float(sim.xpos[world.palm_body][2])
         object_z0 = float(sim.xpos[world.object_body][2])
+        object_qpos_z0 = float(sim.qpos[world.object_qpos + 2])
 
         state["phase"] = "lift"
         lift_rows_ = self.lift.copy()
@@ -495,6 +503,8 @@ class Rollout:
         drift_m, drift_rad = _pose_change(in_palm_closed, in_palm_end)
         palm_rise = float(sim.xpos[world.palm_body][2]) - palm_z0
         object_rise = float(sim.xpos[world.object_body][2]) - object_z0
+        # Its highest rise: one that fell back to the table was still dropped.
+        peak_rise = max(object_rise, state["top"] - object_qpos_z0)
         final = set()
         holding = False
         for i in range(sim.ncon):
@@ -523,7 +533,7 @@ class Rollout:
         elif state["sunk"] is not None:
             cause = "fell"
         elif not holding:
-            cause = "dropped" if object_rise > 0.01 else "no contact"
+            cause = "dropped" if peak_rise > DROPPED_RISE else "no contact"
         elif not lifted:
             cause = "not lifted"
         elif drift_m > options.success_distance or drift_rad > options.success_angle:
@@ -578,7 +588,11 @@ class Rollout:
             obstacle_contacts=obstacle_contacts,
             tracking=tracking,
             final_contacts=[{"link": a, "with": b} for a, b in sorted(final)],
-            lift={"palm_mm": palm_rise * 1e3, "object_mm": object_rise * 1e3},
+            lift={
+                "palm_mm": palm_rise * 1e3,
+                "object_mm": object_rise * 1e3,
+                "object_peak_mm": peak_rise * 1e3,
+            },
             in_hand={"mm": drift_m * 1e3, "deg": math.degrees(drift_rad)},
             penetration={
                 "object_obstacle_mm": state["pressed"] * 1e3,
