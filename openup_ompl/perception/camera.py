@@ -27,6 +27,15 @@ __all__ = ["CameraOptions", "DepthCamera", "DepthView"]
 ORBIT_KEYS = ("distance", "elevation", "azimuth")
 
 
+#: The surface under the object's measured points is its support
+#: (:meth:`DepthCamera.support_under`) when it lies at most this far [m] above their
+#: lowest one (the sensor's noise reaches millimetres) ...
+SUPPORT_TOLERANCE = 0.01
+#: ... and at most this far [m] below it: the Panda scene's wall hides its can's lowest
+#: 22-25 mm; an object held higher above a surface is not standing on it.
+SUPPORT_GAP = 0.05
+
+
 @dataclass(frozen=True)
 class CameraOptions:
     """Pose, intrinsics and resolution of the depth camera.
@@ -288,8 +297,8 @@ class DepthCamera:
         self.model = scene_spec(problem).compile()
         self.data = mujoco.MjData(self.model)
         mujoco.mj_kinematics(self.model, self.data)
-        body = self.model.body("object").id
-        self.object_geoms = np.flatnonzero(self.model.geom_bodyid == body)
+        self._object_body = self.model.body("object").id
+        self.object_geoms = np.flatnonzero(self.model.geom_bodyid == self._object_body)
         fx, fy, cx, cy = self.options.intrinsics()
         width, height = self.options.width, self.options.height
         u, v = np.meshgrid(np.arange(width) + 0.5, np.arange(height) + 0.5)
@@ -336,3 +345,24 @@ class DepthCamera:
             height=self.options.height,
             focal=self._focal,
         )
+
+    def support_under(self, points: np.ndarray) -> float | None:
+        """Height [m] of the surface the object stands on, from its measured ``points``: a
+        ray cast straight down from their top at their centre, past the object, hits it;
+        ``None`` when nothing lies below, or what it hits is not within
+        :data:`SUPPORT_TOLERANCE` above and :data:`SUPPORT_GAP` below the points' lowest
+        (then it is not what the object stands on)."""
+        import mujoco
+
+        points = np.asarray(points, dtype=float)
+        start = np.array([*points[:, :2].mean(axis=0), points[:, 2].max()])
+        geom = np.array([-1], dtype=np.int32)
+        down = np.array([0.0, 0.0, -1.0])
+        distance = mujoco.mj_ray(
+            self.model, self.data, start, down, None, 1, self._object_body, geom
+        )
+        if geom[0] < 0:
+            return None
+        height = float(start[2] - distance)
+        lowest = float(points[:, 2].min())
+        return height if -SUPPORT_GAP <= height - lowest <= SUPPORT_TOLERANCE else None

@@ -89,9 +89,12 @@ class Perception:
         }
 
 
-def silhouette_of(view: DepthView, noise: NoiseOptions, camera: CameraOptions) -> Silhouette:
+def silhouette_of(
+    view: DepthView, noise: NoiseOptions, camera: CameraOptions, support: float | None = None
+) -> Silhouette:
     """The view's free space: the object's pixels, pixels without a measurement (dropped
-    or no hit: unknown) and pixels whose hit lies in front of the object are allowed."""
+    or no hit: unknown) and pixels whose hit lies in front of the object are allowed;
+    nothing below the ``support``'s height [m] (:meth:`DepthCamera.support_under`)."""
     valid = view.hit & (view.incidence <= math.radians(noise.max_incidence))
     on_object = view.on_object & valid
     shape = (view.height, view.width)
@@ -103,6 +106,7 @@ def silhouette_of(view: DepthView, noise: NoiseOptions, camera: CameraOptions) -
         view.position,
         view.rotation,
         camera.intrinsics(),
+        support=support,
     )
 
 
@@ -134,7 +138,8 @@ def perceive(
         fit: Superquadric fit options.
         rng: The noise's random generator (default: seed 0).
         depth_camera: An already built camera (many views of one scene).
-        silhouette: Use the view's free space in the fit (:class:`Silhouette`).
+        silhouette: Use the view's free space in the fit (:class:`Silhouette`), and the
+            surface under the object as its floor (it stands on the table, not through it).
         weighted: Weight the fit by the sensor's noise model (:func:`normal_sigma`).
 
     Raises:
@@ -161,7 +166,9 @@ def perceive(
         )
     if cloud.points.shape[0] < 2 * N_PARAMETERS:
         raise TooFewPoints(cloud.points.shape[0], 2 * N_PARAMETERS)
-    shape = silhouette_of(view, noise, cam.options) if silhouette else None
+    shape = None
+    if silhouette:
+        shape = silhouette_of(view, noise, cam.options, cam.support_under(cloud.points))
     weights = normal_sigma(cam.position, cam.rotation, noise) if weighted else None
     result = fit_superquadric(cloud.points, fit, shape, weights)
     bound = (fit or FitOptions()).min_size
