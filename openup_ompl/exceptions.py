@@ -226,6 +226,27 @@ class ObjectNotVisible(PerceptionError):
         )
 
 
+class ObjectCutOff(PerceptionError):
+    """The object runs off the image: the view does not bound it, and the fit grew it
+    past the border (an audit: 49 mm too high with a 0.9 mm sigma; a camera 0.12 m away,
+    a half-length at the fit's 1 m bound).
+
+    Attributes:
+        pixels: The object's pixels on the image border.
+        sides: The borders they lie on (``"top"``, ``"bottom"``, ``"left"``, ``"right"``).
+    """
+
+    def __init__(self, pixels: int, sides: Sequence[str]) -> None:
+        self.pixels = pixels
+        self.sides = list(sides)
+        super().__init__(
+            f"the object runs off the image: {pixels} of its pixels on its"
+            f" {' and '.join(self.sides)} border{'s' if len(self.sides) > 1 else ''}: expected"
+            " the whole object in view (a wider field of view, or a camera further away or"
+            " aimed at it)"
+        )
+
+
 class TooFewPoints(PerceptionError):
     """The object's point cloud has fewer points than the fit has parameters.
 
@@ -261,7 +282,7 @@ class DegenerateFit(PerceptionError):
         super().__init__(
             f"the superquadric fit collapsed onto one face of the object: half-sizes [{shown}]"
             f" mm, one at the fit's bound {self.bound * 1e3:g} mm (the view shows no extent"
-            " along it): expected a view of more than one face (a lower camera)"
+            " along it): expected a view of more than one face (from another side)"
         )
 
 

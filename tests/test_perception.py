@@ -489,3 +489,18 @@ def test_a_view_from_above_keeps_the_can_on_the_table():
         seen = perceive(problem, depth_camera=camera, rng=np.random.default_rng(seed))
         error = seen.pose[:3] - problem.object.pose[:3]
         assert abs(error[2]) < 0.003 and np.linalg.norm(error[:2]) < 0.005, (seed, error)
+
+
+@pytest.mark.parametrize(
+    ("camera", "sides"),
+    [({"fx": 200.0, "cy": 120.0}, ["bottom"]), ({"distance": 0.12}, ["top", "bottom"])],
+)
+def test_an_object_running_off_the_image_is_refused(lwa3_can, camera, sides):
+    """A view that cuts the can off at the image border does not bound it: the fit grew it
+    past the border (49 mm too high, sigma 0.9 mm) and was written as an estimate."""
+    from openup_ompl.exceptions import ObjectCutOff, PerceptionError
+
+    with pytest.raises(ObjectCutOff, match=" and ".join(sides)) as refused:
+        perceive(lwa3_can, CameraOptions(**camera))
+    assert isinstance(refused.value, PerceptionError) and refused.value.sides == sides
+    assert refused.value.pixels > 0

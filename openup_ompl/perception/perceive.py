@@ -19,7 +19,13 @@ import pinocchio as pin
 
 from openup_ompl import _toml
 from openup_ompl._io import make_dir, write_atomic
-from openup_ompl.exceptions import DegenerateFit, InvalidProblem, ObjectNotVisible, TooFewPoints
+from openup_ompl.exceptions import (
+    DegenerateFit,
+    InvalidProblem,
+    ObjectCutOff,
+    ObjectNotVisible,
+    TooFewPoints,
+)
 from openup_ompl.perception.camera import (
     CameraOptions,
     DepthCamera,
@@ -145,6 +151,8 @@ def perceive(
     Raises:
         ObjectNotVisible: No point of the object is measured.
         TooFewPoints: Too few for the fit.
+        ObjectCutOff: The object's pixels reach the image border (the view does not
+            bound it).
         DegenerateFit: The fit collapsed onto one face (a half-size within
             :data:`DEGENERATE_FACTOR` of its lower bound).
     """
@@ -166,6 +174,19 @@ def perceive(
         )
     if cloud.points.shape[0] < 2 * N_PARAMETERS:
         raise TooFewPoints(cloud.points.shape[0], 2 * N_PARAMETERS)
+    on_object = view.on_object.reshape(view.height, view.width)
+    border = {
+        "top": on_object[0],
+        "bottom": on_object[-1],
+        "left": on_object[:, 0],
+        "right": on_object[:, -1],
+    }
+    sides = [side for side, pixels in border.items() if pixels.any()]
+    if sides:
+        # The corner pixels lie on two sides: count each pixel once.
+        edge = on_object.copy()
+        edge[1:-1, 1:-1] = False
+        raise ObjectCutOff(int(edge.sum()), sides)
     shape = None
     if silhouette:
         shape = silhouette_of(view, noise, cam.options, cam.support_under(cloud.points))
