@@ -715,6 +715,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (OpenUpError, OSError) as error:
         print(f"openup-ompl: error: {error}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("openup-ompl: interrupted", file=sys.stderr)
+        return 130
 
 
 def run() -> None:

@@ -76,6 +76,7 @@ def closed_loop_command(args: argparse.Namespace) -> int:
     from openup_ompl.perception.closed_loop import (
         ClosedLoopOptions,
         closed_loop,
+        finished_trials,
         kinematic_judge,
         summarize,
         write_csv,
@@ -103,7 +104,18 @@ def closed_loop_command(args: argparse.Namespace) -> int:
         from openup_ompl.physics.sweep import physics_judge
 
         judge = physics_judge
-    records = closed_loop(problem, options, judge=judge, progress=progress)
+    records: list[dict[str, Any]] = []
+    interrupted = False
+    try:
+        closed_loop(problem, options, judge=judge, progress=progress, records=records)
+    except KeyboardInterrupt:
+        # Keep what ended: a physics run takes minutes, and every view is seeded, so
+        # the rest can be run with --seed.
+        records = finished_trials(records, len(options.policies))
+        interrupted = True
+        if not records:
+            print("openup-ompl: interrupted before any trial ended", file=sys.stderr)
+            return 130
     rows = summarize(records)
     args.out.mkdir(parents=True, exist_ok=True)
     csv_path = write_csv(rows, args.out / "closed_loop.csv")
@@ -117,6 +129,12 @@ def closed_loop_command(args: argparse.Namespace) -> int:
             f" {row['successes']}/{row['trials']} (mean u {mean_u}{unseen})"
         )
     print(f"table written to {csv_path}; every trial in {trials}")
+    if interrupted:
+        views = len(records) // len(options.policies)
+        print(
+            f"openup-ompl: interrupted: the {views} views that ended are written",
+            file=sys.stderr,
+        )
 
     try:
         from openup_ompl.perception.figure import plot_closed_loop
@@ -128,4 +146,4 @@ def closed_loop_command(args: argparse.Namespace) -> int:
         print(f"plot written to {plot_closed_loop(rows, args.out / 'closed_loop.png', title)}")
     except MissingExtra as missing:
         print(f"no plot: {missing}", file=sys.stderr)
-    return 0
+    return 130 if interrupted else 0

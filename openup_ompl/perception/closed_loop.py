@@ -19,6 +19,7 @@ from __future__ import annotations
 import csv
 import dataclasses
 import math
+from collections import Counter
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -45,6 +46,7 @@ __all__ = [
     "ClosedLoopOptions",
     "Judge",
     "closed_loop",
+    "finished_trials",
     "kinematic_judge",
     "read_csv",
     "summarize",
@@ -174,8 +176,14 @@ def closed_loop(
     options: ClosedLoopOptions | None = None,
     judge: Judge = kinematic_judge,
     progress: Callable[[str], None] | None = None,
+    records: list[dict[str, Any]] | None = None,
 ) -> list[dict[str, Any]]:
-    """Run every trial; returns one record per (noise, distance, seed, policy)."""
+    """Run every trial; returns one record per (noise, distance, seed, policy).
+
+    ``records``: the list the records are appended to as the trials end (default: a new
+    one); a caller that keeps it keeps the finished trials when the run is interrupted
+    (:func:`finished_trials`).
+    """
     from openup_ompl.planning import GraspPlanningSetup
 
     options = options or ClosedLoopOptions()
@@ -184,7 +192,7 @@ def closed_loop(
     cameras = options.cameras(
         options.camera if options.camera is not None else camera_of_scene(problem)
     )
-    records = []
+    records = [] if records is None else records
     for noise in options.noises:
         for distance, options_at in zip(options.distances, cameras, strict=True):
             camera = DepthCamera(problem, options_at)
@@ -246,6 +254,13 @@ def closed_loop(
                 if progress is not None:
                     progress(f"noise {noise:g}, distance {distance:g} m, seed {seed} done")
     return records
+
+
+def finished_trials(records: list[dict[str, Any]], policies: int) -> list[dict[str, Any]]:
+    """The records of the trials (views) that ended for all ``policies`` (an interrupted
+    run's last view may have ended for some only)."""
+    counts = Counter((r["noise"], r["distance"], r["seed"]) for r in records)
+    return [r for r in records if counts[(r["noise"], r["distance"], r["seed"])] == policies]
 
 
 def _mean(values: Iterable[float | None]) -> float | None:
