@@ -90,8 +90,8 @@ class Plan:
                 "hand_joints": list(robot.hand_joints),
             },
             "scene": {
-                "object": None if scene_object is None else scene_object.raw,
-                "obstacles": [shape.raw for shape in self.problem.obstacles],
+                "object": None if scene_object is None else scene_object.to_table(),
+                "obstacles": [shape.to_table() for shape in self.problem.obstacles],
             },
             "start": self.problem.start.tolist(),
             "grasp_pose": self.problem.grasp_pose.tolist(),

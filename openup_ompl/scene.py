@@ -36,6 +36,23 @@ MIN_MASS = 1e-6
 #: The object's mass [kg] and Coulomb friction when the scene gives none (physics only).
 OBJECT_MASS = 0.1
 OBJECT_FRICTION = 0.6
+#: The thinnest radius or length of a cylinder or sphere accepted [m].
+MIN_EXTENT = 1e-6
+
+
+def _box_size(value: Any, where: str) -> np.ndarray:
+    """A box's full side lengths [m]: three in ``(0, MAX_EXTENT]``, or a ConfigError."""
+    size = _toml.vector(value, where, 3)
+    if np.any(size <= 0) or np.any(size > _toml.MAX_EXTENT):
+        raise ConfigError(
+            where, _toml.shown(value), f"three positive lengths [m], at most {_toml.MAX_EXTENT:g}"
+        )
+    return size
+
+
+def _extent(value: Any, where: str) -> float:
+    """A cylinder's or sphere's radius or length [m] in ``[MIN_EXTENT, MAX_EXTENT]``."""
+    return _toml.number(value, where, low=MIN_EXTENT, high=_toml.MAX_EXTENT)
 
 
 @dataclass(frozen=True)
@@ -52,7 +69,8 @@ class Shape:
         mass: Mass [kg] (the object only: it is a free body in physics).
         friction: Coulomb friction coefficient in physics (``None``: the simulator's
             default; the object's default is :data:`OBJECT_FRICTION`).
-        raw: The table as written in the scene file (repeated in plan files).
+        raw: The table as written in the scene file (``{}`` for a shape built in code;
+            plan files hold :meth:`to_table`, not this).
     """
 
     name: str
@@ -89,20 +107,60 @@ class Shape:
         name = _toml.string(_toml.require(table, "name", where), f"{where}.name")
         pose = _toml.pose(_toml.require(table, "pose", where), f"{where}.pose")
         if shape == "box":
-            size = _toml.vector(_toml.require(table, "size", where), f"{where}.size", 3)
-            if np.any(size <= 0) or np.any(size > _toml.MAX_EXTENT):
-                raise ConfigError(
-                    f"{where}.size",
-                    table["size"],
-                    f"three positive lengths [m], at most {_toml.MAX_EXTENT:g}",
-                )
+            size = _box_size(_toml.require(table, "size", where), f"{where}.size")
             return cls(name, shape, pose, size=size, raw=dict(table), **physics)
-        extent = {"low": 1e-6, "high": _toml.MAX_EXTENT}
-        radius = _toml.number(_toml.require(table, "radius", where), f"{where}.radius", **extent)
+        radius = _extent(_toml.require(table, "radius", where), f"{where}.radius")
         if shape == "sphere":
             return cls(name, shape, pose, radius=radius, raw=dict(table), **physics)
-        length = _toml.number(_toml.require(table, "length", where), f"{where}.length", **extent)
+        length = _extent(_toml.require(table, "length", where), f"{where}.length")
         return cls(name, shape, pose, radius=radius, length=length, raw=dict(table), **physics)
+
+    def __post_init__(self) -> None:
+        """Check a shape built in code (or by ``dataclasses.replace``) as :meth:`from_table`
+        checks a file's: a known shape with its dimensions only, each within
+        ``[MIN_EXTENT, MAX_EXTENT]`` (a negative box was dropped from collision checks
+        without a word), a pose with a unit quaternion (normalised), a mass of at least
+        :data:`MIN_MASS` and a friction >= 0 when given. Arrays, lists and tuples are
+        stored as float arrays, numbers as floats.
+
+        Raises:
+            ConfigError: Naming the shape and the field (``shape 'wall'.size``).
+        """
+        name = _toml.string(self.name, "shape.name")
+        where = f"shape {name!r}"
+        if not (isinstance(self.shape, str) and self.shape in SHAPES):
+            raise ConfigError(f"{where}.shape", self.shape, f"one of {SHAPES}")
+        if not isinstance(self.raw, dict):
+            raise ConfigError(f"{where}.raw", self.raw, "a dict (the scene file's table)")
+        checked: dict[str, Any] = {"pose": _toml.pose(_toml.shown(self.pose), f"{where}.pose")}
+        keys = SHAPE_KEYS[self.shape]
+        for key, check in (("size", _box_size), ("radius", _extent), ("length", _extent)):
+            value = getattr(self, key)
+            if key in keys:
+                checked[key] = check(value, f"{where}.{key}")
+            elif value is not None:
+                raise ConfigError(
+                    f"{where}.{key}", _toml.shown(value), f"None: a {self.shape} has {keys}"
+                )
+        if self.mass is not None:
+            checked["mass"] = _toml.number(self.mass, f"{where}.mass", low=MIN_MASS)
+        if self.friction is not None:
+            checked["friction"] = _toml.number(self.friction, f"{where}.friction", low=0.0)
+        for key, value in checked.items():  # frozen: set as the dataclass's own __init__ does
+            object.__setattr__(self, key, value)
+
+    def to_table(self) -> dict[str, Any]:
+        """The shape as a scene file's table, written from its fields (JSON and TOML
+        types): what a plan file holds, read back by :meth:`from_table` into an equal
+        shape. Not :attr:`raw`, which a shape changed in code (``dataclasses.replace``)
+        or built there does not update or have."""
+        table: dict[str, Any] = {"name": self.name, "shape": self.shape}
+        table["pose"] = np.asarray(self.pose, dtype=float).tolist()
+        for key in (*SHAPE_KEYS[self.shape], "mass", "friction"):
+            value = getattr(self, key)
+            if value is not None:
+                table[key] = np.asarray(value, dtype=float).tolist()
+        return table
 
     @property
     def placement(self) -> pin.SE3:
@@ -155,11 +213,13 @@ class Problem:
     def __post_init__(self) -> None:
         """Check what a problem built in code (or by ``dataclasses.replace``) holds, as
         :func:`load_scene` checks a file: a start of finite arm joint values (its joint
-        limits are the setup's check: :class:`~openup_ompl.exceptions.InvalidProblem`)
-        and a grasp pose with a unit quaternion (normalised).
+        limits are the setup's check: :class:`~openup_ompl.exceptions.InvalidProblem`),
+        a grasp pose with a unit quaternion (normalised), a hand law of the robot's hand,
+        a list (or tuple, stored as a list) of :class:`Shape` obstacles and an optional
+        :class:`Shape` object, all named apart (:func:`check_unique_names`).
 
         Raises:
-            ConfigError: Naming ``problem.start`` or ``problem.grasp_pose``.
+            ConfigError: Naming the field (``problem.start``, ``problem.obstacles[2]``, ...).
         """
         if not isinstance(self.robot, Robot):
             raise ConfigError("problem.robot", self.robot, "a Robot (load_robot)")
@@ -170,6 +230,38 @@ class Problem:
             raise ConfigError("problem.start", shown, f"{n} finite arm joint values")
         self.start = start
         self.grasp_pose = _toml.pose(self.grasp_pose, "problem.grasp_pose")
+        law = self.hand_law
+        if not isinstance(law, HandLaw):
+            raise ConfigError("problem.hand_law", law, "a HandLaw (robot.hand_law())")
+        hand = self.robot.hand_idx.size
+        if law.c.shape != (hand,):
+            raise ConfigError(
+                "problem.hand_law", law.c.tolist(), f"a law of the robot's {hand} hand joints"
+            )
+        if not isinstance(self.obstacles, (list, tuple)):
+            raise ConfigError("problem.obstacles", self.obstacles, "a list of Shapes ([] for none)")
+        for i, shape in enumerate(self.obstacles):
+            if not isinstance(shape, Shape):
+                raise ConfigError(f"problem.obstacles[{i}]", shape, "a Shape")
+            if shape.mass is not None:  # as a scene file's: a plan file would be refused
+                raise ConfigError(
+                    f"problem.obstacles[{i}].mass", shape.mass, "None: obstacles are fixed"
+                )
+        self.obstacles = list(self.obstacles)
+        if self.object is not None and not isinstance(self.object, Shape):
+            raise ConfigError("problem.object", self.object, "None or a Shape")
+        check_unique_names(self.obstacles, self.object, "problem: obstacle name")
+
+    def source_files(self) -> list[Path]:
+        """The files the problem was read from: its scene file (if any), the robot file,
+        and the URDF and SRDF files it names (its mounted hand's too). Not the meshes a
+        URDF references: finding them means resolving its package URIs, and the shipped
+        robots' come from an installed package (example-robot-data) or are primitives."""
+        spec = self.robot.spec
+        files = [self.path, spec.path, spec.urdf, spec.srdf]
+        if spec.mount is not None:
+            files += [spec.mount.urdf, spec.mount.srdf]
+        return [Path(file) for file in files if file is not None]
 
     @property
     def grasp(self) -> pin.SE3:

@@ -390,6 +390,66 @@ def test_plan_file_follows_contract(default_setup: oo.GraspPlanningSetup, tmp_pa
     )
 
 
+def _assert_same_shape(read: oo.Shape | None, shape: oo.Shape) -> None:
+    """``read`` has every compared field of ``shape`` (arrays equal element by element)."""
+    assert read is not None
+    for field in dataclasses.fields(oo.Shape):
+        if field.compare:
+            value, expected = getattr(read, field.name), getattr(shape, field.name)
+            if expected is None:
+                assert value is None, field.name
+            else:
+                np.testing.assert_array_equal(value, expected, err_msg=field.name)
+
+
+def test_plan_file_holds_the_shapes_as_the_problem_has_them(
+    default_problem: oo.Problem, tmp_path: Path
+) -> None:
+    """A plan file holds each shape's fields, not the table its scene file wrote: an
+    object moved in code is saved where it was moved (it was saved 3 cm from its grasp),
+    and shapes built in code (no table) are saved whole; the plan reader reads back
+    equal shapes and the independent re-check finds the path collision-free among them."""
+    assert default_problem.object is not None
+    dy = np.array([0.0, 0.03, 0.0, 0.0, 0.0, 0.0, 0.0])
+    can = dataclasses.replace(default_problem.object, pose=default_problem.object.pose + dy)
+    behind = np.array([-0.5, 0.6, 0.1, 0.0, 0.0, 0.0, 1.0])  # far from the reach
+    post = oo.Shape("post", "cylinder", behind, radius=0.02, length=0.2)
+    ball = oo.Shape("ball", "sphere", behind + [0, -1.2, 0, 0, 0, 0, 0], radius=0.05, friction=0.3)
+    problem = dataclasses.replace(
+        default_problem,
+        object=can,
+        obstacles=[*default_problem.obstacles, post, ball],
+        grasp_pose=default_problem.grasp_pose + dy,
+    )
+    plan = oo.GraspPlanningSetup(problem).solve(planner="ikbirrt", seed=1)
+    saved = plan.save(tmp_path / "moved.json")
+    assert json.loads(saved.read_text())["scene"]["object"]["pose"] == can.pose.tolist()
+    read = oo.PlanFile.read(saved)
+    _assert_same_shape(read.object, can)
+    assert len(read.obstacles) == len(problem.obstacles)
+    for shape, expected in zip(read.obstacles, problem.obstacles, strict=True):
+        _assert_same_shape(shape, expected)
+    assert_plan_rechecks(plan, tmp_path)
+
+
+def test_plan_files_with_the_scene_tables_as_written_still_read(
+    default_setup: oo.GraspPlanningSetup,
+) -> None:
+    """A plan file of the earlier writer (each shape the scene file's table as written,
+    the object without its default mass and friction) reads into the same shapes."""
+    problem = default_setup.problem
+    data = default_setup.solve(planner="ikbirrt", seed=5).to_dict()
+    assert problem.object is not None and "mass" not in problem.object.raw
+    data["scene"] = {
+        "object": problem.object.raw,
+        "obstacles": [shape.raw for shape in problem.obstacles],
+    }
+    read = oo.PlanFile.from_dict(data)
+    _assert_same_shape(read.object, problem.object)
+    for shape, expected in zip(read.obstacles, problem.obstacles, strict=True):
+        _assert_same_shape(shape, expected)
+
+
 @pytest.mark.slow
 def test_goal_tree_retreats_against_the_approach(tmp_path: Path) -> None:
     """Each IK root of IKBiRRT's goal tree grows a straight retreat of the palm against
