@@ -40,7 +40,7 @@ from openup_ompl import _toml
 from openup_ompl._io import json_safe
 from openup_ompl._resources import data_dir
 from openup_ompl.exceptions import ConfigError, InvalidProblem, MissingExtra, OpenUpError
-from openup_ompl.executor import Task, check_seeds, load_records, run_tasks
+from openup_ompl.executor import Task, check_seeds, load_records, run_tasks, settings_digest
 from openup_ompl.planning import (
     GraspPlanningSetup,
     PlanningOptions,
@@ -150,11 +150,13 @@ def make_tasks(
     """The sweep: one task per problem x planner x hand x run.
 
     Run ``i`` has seed ``seed + i`` for every problem, planner and hand, so the
-    configurations are compared on the same seeds.
+    configurations are compared on the same seeds. The keys carry a digest of the time
+    limit and of the problem's files (:func:`~openup_ompl.executor.settings_digest`).
 
     Raises:
         ConfigError: Unknown planner or hand, ``runs`` outside ``[1, MAX_RUNS]``, seeds
-            outside ``[0, 2^31)``, or a bad time limit.
+            outside ``[0, 2^31)``, a bad time limit, or what
+            :func:`~openup_ompl.scene.load_scene` raises for a problem file.
     """
     names = _planner_names(planners)
     check_seeds(seed, runs, MAX_RUNS, "runs")
@@ -166,12 +168,17 @@ def make_tasks(
     tasks = []
     for problem in problems:
         ident, path = problem_id(Path(problem)), str(Path(problem).resolve())
+        # A rerun into the same shards reuses a run only with the same time limit and the
+        # same scene, robot and URDF files.
+        digest = settings_digest(
+            {"time_limit": float(time_limit)}, load_scene(problem).source_files()
+        )
         for name in names:
             for hand in hands:
                 for i in range(runs):
                     tasks.append(
                         Task(
-                            key=f"{ident}-{name}-{hand}-{i:04d}",
+                            key=f"{ident}-{name}-{hand}-{i:04d}-{digest}",
                             function="openup_ompl.benchmark:benchmark_run",
                             kwargs={
                                 "problem": path,

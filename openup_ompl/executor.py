@@ -24,6 +24,7 @@ died.
 
 from __future__ import annotations
 
+import hashlib
 import importlib
 import json
 import os
@@ -48,6 +49,7 @@ __all__ = [
     "run_tasks",
     "seed_ompl",
     "selfcheck_task",
+    "settings_digest",
     "shard_path",
 ]
 
@@ -120,6 +122,16 @@ class Task:
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), sort_keys=True)
+
+
+def settings_digest(settings: dict[str, Any], files: Iterable[Path]) -> str:
+    """A short digest of a sweep's ``settings`` (JSON values) and of the contents of the
+    ``files`` its runs read, for its task keys: a rerun into the same shards reuses a
+    finished run only when neither changed (a can's radius edited in the scene file, a
+    joint limit in the URDF, another time limit give other keys)."""
+    contents = [hashlib.sha1(Path(file).read_bytes()).hexdigest() for file in files]
+    keyed = json.dumps({**settings, "contents": contents}, sort_keys=True)
+    return hashlib.sha1(keyed.encode()).hexdigest()[:10]
 
 
 def shard_path(shards: Path, key: str) -> Path:

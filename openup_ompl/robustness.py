@@ -27,7 +27,6 @@ line per ``u``) and ``trials.json`` (every trial), formatted by
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import json
 import math
 import os
@@ -45,7 +44,14 @@ from openup_ompl._io import make_dir
 from openup_ompl._resources import data_dir
 from openup_ompl.collision import CollisionWorld
 from openup_ompl.exceptions import ConfigError, InvalidProblem, MissingExtra, PlanningFailed
-from openup_ompl.executor import SEED_LIMIT, Task, check_seeds, load_records, run_tasks
+from openup_ompl.executor import (
+    SEED_LIMIT,
+    Task,
+    check_seeds,
+    load_records,
+    run_tasks,
+    settings_digest,
+)
 from openup_ompl.grasp import (
     GraspResult,
     HandCloser,
@@ -267,9 +273,18 @@ def check_scene(scene: str | Path) -> Problem:
 
 
 def make_tasks(scene: str | Path, options: RobustnessOptions) -> list[Task]:
-    """One task per ``(u, seed)``; the key carries a digest of every setting, so that a
-    rerun with other settings never reuses a shard."""
-    path = str(Path(scene).resolve())
+    """One task per ``(u, seed)``; the key carries a digest of every setting and of the
+    contents of the files the plans are made from (:meth:`Problem.source_files
+    <openup_ompl.scene.Problem.source_files>`), so that a rerun with other settings, or
+    after one of those files was edited, never reuses a shard
+    (:func:`~openup_ompl.executor.settings_digest`).
+
+    Raises:
+        ConfigError, RobotNotFound: What :func:`~openup_ompl.scene.load_scene` raises
+            for ``scene`` (a missing file, a bad value, an unknown robot).
+    """
+    problem = load_scene(scene)
+    path = str(problem.path)
     cells = perturbations(options.deltas, options.yaws)
     shared = {
         "scene": path,
@@ -284,7 +299,9 @@ def make_tasks(scene: str | Path, options: RobustnessOptions) -> list[Task]:
     if options.execute == "physics":
         shared["execute"] = "physics"
         function = "openup_ompl.physics.sweep:physics_run"
-    digest = hashlib.sha1(json.dumps(shared, sort_keys=True).encode()).hexdigest()[:10]
+    # The files' bytes, not only the scene's path (the task processes read the files
+    # again, by path, so the contents stay out of their arguments).
+    digest = settings_digest(shared, problem.source_files())
     tasks = []
     for u in options.us:
         for i in range(options.seeds):

@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -98,6 +99,40 @@ def test_rerun_reuses_every_shard(small_sweep, tmp_path: Path) -> None:  # type:
     keys = {t.key for t in make_tasks(default_robustness_scene(), SMALL)}
     other = RobustnessOptions(us=SMALL.us, deltas=(0.0, 0.01), seeds=2)
     assert keys.isdisjoint(t.key for t in make_tasks(default_robustness_scene(), other))
+
+
+def test_an_edited_scene_robot_or_urdf_gets_other_task_keys(tmp_path: Path) -> None:
+    """Task keys carry the contents of the scene, robot and URDF files, not only the
+    scene's path: the same files give the same keys, and each edit (the can's radius,
+    the robot's padding, a URDF joint limit) gives keys no earlier run used."""
+    problem = oo.load_scene(default_robustness_scene())
+    spec = problem.robot.spec
+    shutil.copytree(spec.urdf.parent, tmp_path / spec.urdf.parent.name)
+    robot = tmp_path / spec.path.name
+    robot.write_text(spec.path.read_text())
+    scene = tmp_path / "scene.toml"
+    text = default_robustness_scene().read_text()
+    scene.write_text(text.replace('robot = "lwa3_sdh"', f'robot = "{robot.name}"'))
+    urdf = tmp_path / spec.urdf.parent.name / spec.urdf.name
+
+    def keys() -> set[str]:
+        return {task.key for task in make_tasks(scene, SMALL)}
+
+    seen = [keys()]
+    assert keys() == seen[0]
+    edits = [
+        (scene, "radius = 0.033", "radius = 0.034"),
+        (robot, "\nhome = ", "\npadding = 0.001\nhome = "),
+        (urdf, 'upper="3.14159"', 'upper="3.0"'),
+    ]
+    for path, old, new in edits:
+        before = path.read_text()
+        assert old in before, path
+        path.write_text(before.replace(old, new, 1))
+        seen.append(keys())
+    for i, earlier in enumerate(seen):
+        for later in seen[i + 1 :]:
+            assert earlier.isdisjoint(later)
 
 
 def test_open_c_scene_of_the_readme_loads() -> None:
