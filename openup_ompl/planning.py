@@ -26,7 +26,7 @@ from openup_ompl.hand_law import HandLaw
 from openup_ompl.ik import IKOptions, IKSolver
 from openup_ompl.plan import Plan, number_rows
 from openup_ompl.planners.ikbirrt import IKBiRRT, IKBiRRTOptions
-from openup_ompl.robot import Robot
+from openup_ompl.robot import LIMIT_TOLERANCE, Robot
 from openup_ompl.scene import Problem
 from openup_ompl.validity import (
     DEFAULT_RESOLUTION,
@@ -63,6 +63,13 @@ _UNSUPPORTED = {
     "prmstar": "deadlocks on a Python goal region",
     "aorrtc": "crashes on a Python goal region in OMPL 2.0.1",
 }
+#: The OMPL classes of :data:`_UNSUPPORTED`, refused as instances too: built by hand they
+#: hang or crash the same way (``og.PRMstar`` derives from ``og.PRM``, so it comes first).
+_UNSUPPORTED_CLASSES: tuple[tuple[type, str], ...] = (
+    (og.PRMstar, "prmstar"),
+    (og.PRM, "prm"),
+    (og.AORRTC, "aorrtc"),
+)
 
 
 def _hand_override(value: str | Sequence[float] | None, law: HandLaw) -> np.ndarray | None:
@@ -88,6 +95,19 @@ def check_planner(name: str) -> str:
         why = f" ({_UNSUPPORTED[key]})" if key in _UNSUPPORTED else ""
         raise ConfigError("planner", name, f"one of {list(PLANNERS)}{why}")
     return str(key)
+
+
+def check_planner_instance(planner: ob.Planner) -> ob.Planner:
+    """``planner`` unless it is an instance of an OMPL planner refused by name (see
+    :data:`_UNSUPPORTED`), else a :class:`ConfigError` that says why."""
+    for kind, key in _UNSUPPORTED_CLASSES:
+        if isinstance(planner, kind):
+            raise ConfigError(
+                "planner",
+                type(planner).__name__,
+                f"a planner other than og.PRM, og.PRMstar and og.AORRTC ({_UNSUPPORTED[key]})",
+            )
+    return planner
 
 
 def arm_state_space(robot: Robot) -> ob.RealVectorStateSpace:
@@ -422,9 +442,10 @@ class GraspPlanningSetup:
                 name is restarted whenever :data:`STALL_MOTIONS` motions pass without a
                 goal drawn (``plan.stats["restarts"]``); an instance runs as given.
             seed: Seeds IK and goal sampling, and IKBiRRT entirely (same seed, same
-                path). OMPL's own planners draw from OMPL's process-wide generator, which
-                only ``ompl.util.RNG.setSeed`` before any OMPL object fixes (the command
-                line does that).
+                path; ``None`` with an IKBiRRT instance: its ``options.seed``, recorded as
+                the plan's seed; else fresh entropy). OMPL's own planners draw from OMPL's
+                process-wide generator, which only ``ompl.util.RNG.setSeed`` before any
+                OMPL object fixes (the command line does that).
             simplify: Shorten the path with OMPL's ``PathSimplifier`` (vertex reduction,
                 partial shortcuts, collapse of close vertices, through the coupled motion
                 validator); the hand is then re-derived from the law. The work is bounded
@@ -434,7 +455,8 @@ class GraspPlanningSetup:
                 changes nothing). ``simplify`` and this default to the options'.
 
         Raises:
-            ConfigError: Bad time limit, seed, planner name or simplification option.
+            ConfigError: Bad time limit, seed, planner name or simplification option,
+                or an instance of a planner refused by name (``og.PRM``, ...).
             PlanningFailed: No exact solution in time (the message gives OMPL's status).
         """
         options = self.options
@@ -446,8 +468,11 @@ class GraspPlanningSetup:
         simplify, rounds = options.simplify, options.simplify_rounds
         ss = self.simple_setup
         if isinstance(planner, ob.Planner):
-            instance = planner
+            instance = check_planner_instance(planner)
             if isinstance(instance, IKBiRRT):
+                # Without a seed here the run takes the instance's own (its options'): an
+                # IKBiRRT built with seed=3 repeats its path from call to call.
+                seed = instance.options.seed if seed is None else seed
                 instance.set_seed(seed)
         else:
             instance = self.make_planner(planner, seed)
@@ -596,8 +621,10 @@ class GraspPlanningSetup:
 
     def verify(self, path: np.ndarray, rows: np.ndarray | None = None) -> None:
         """Refuse a path that is not a valid plan: it must start at the start, end on the
-        grasp pose within the goal threshold, and collide nowhere (at ``rows`` only, if
-        given: :meth:`solve` leaves out the rows inside motions the checker certified).
+        grasp pose within the goal threshold, keep every arm and hand joint within its
+        limits (:data:`~openup_ompl.robot.LIMIT_TOLERANCE`) at every row, and collide
+        nowhere (at ``rows`` only, if given: :meth:`solve` leaves out the rows inside
+        motions the checker certified). Whether the hand follows the law is not checked.
 
         Raises:
             ConfigError: ``path`` is not a non-empty array of rows of ``nq`` finite
@@ -617,6 +644,20 @@ class GraspPlanningSetup:
         distance = self.goal.task_error(arms[-1])
         if distance > GOAL_THRESHOLD:
             raise VerifyFailed(f"the path ends {distance:.2e} m from the grasp pose")
+        # Every row, whatever ``rows``: the test is a few array operations, and a joint
+        # past its limit can still be collision-free (the Panda's first joint at 10 rad).
+        columns = np.r_[robot.arm_idx, robot.hand_idx]
+        low = robot.model.lowerPositionLimit[columns]
+        high = robot.model.upperPositionLimit[columns]
+        values = path[:, columns]
+        outside = np.argwhere((values < low - LIMIT_TOLERANCE) | (values > high + LIMIT_TOLERANCE))
+        if outside.size:
+            i, j = (int(k) for k in outside[0])
+            joint = [*robot.spec.arm_joints, *robot.hand_joints][j]
+            raise VerifyFailed(
+                f"path row {i}: joint {joint} at {values[i, j]:.6g}, outside its limits "
+                f"[{low[j]:.6g}, {high[j]:.6g}]"
+            )
         rows = np.arange(path.shape[0]) if rows is None else np.asarray(rows, dtype=np.intp)
         flags = self.checker.finest_world.batch_in_collision(
             np.asfortranarray(path[rows].T), stop_at_first=False

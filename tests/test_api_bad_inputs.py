@@ -1,16 +1,20 @@
 """Bad input to the public API's functions and methods (beyond the option classes, whose
 checks their own modules test): each is a ConfigError naming the argument, where it was a
 TypeError, ValueError, IndexError, AttributeError, ZeroDivisionError or a silently wrong
-result before (an audit of the docstrings against the code, 2026-12-03)."""
+result before (an audit of the docstrings against the code, 2026-12-03). Then inputs a
+second audit found accepted or ignored: refused planners given as instances, an IKBiRRT
+instance's seed, paths beyond the joint limits, problems and shapes built in code."""
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 import pinocchio as pin
 import pytest
+from ompl import geometric as og
 
 import openup_ompl as oo
 from openup_ompl.hand_law import HandLaw
@@ -26,6 +30,14 @@ def setup() -> oo.GraspPlanningSetup:
 
 def _root(setup: oo.GraspPlanningSetup) -> np.ndarray:
     return setup.goal.solutions[0]
+
+
+#: A pose of a shape built in code (world frame, identity rotation).
+POSE = [0.5, 0.0, 0.2, 0.0, 0.0, 0.0, 1.0]
+
+
+def _with_obstacles(setup: oo.GraspPlanningSetup, obstacles: Any) -> oo.Problem:
+    return dataclasses.replace(setup.problem, obstacles=obstacles)
 
 
 Setup = oo.GraspPlanningSetup
@@ -68,6 +80,49 @@ CASES: dict[str, tuple[Callable[[Setup], Any], str]] = {
         lambda s: kinect_sigmas(np.array([1.0]), np.array([np.pi / 2])),
         "incidence",
     ),
+    "problem without a law": (
+        lambda s: dataclasses.replace(s.problem, hand_law=None),
+        "problem.hand_law: got None",
+    ),
+    "obstacles None": (lambda s: _with_obstacles(s, None), "problem.obstacles: got None"),
+    "obstacle a string": (lambda s: _with_obstacles(s, ["x"]), "problem.obstacles[0]: got 'x'"),
+    "obstacle named twice": (
+        lambda s: _with_obstacles(s, [*s.problem.obstacles, s.problem.obstacles[0]]),
+        f"obstacle name: got {'table'!r}",
+    ),
+    "object a string": (
+        lambda s: dataclasses.replace(s.problem, object="can"),
+        "problem.object: got 'can'",
+    ),
+    "negative box": (
+        lambda s: oo.Shape("wall", "box", POSE, size=[0.1, -0.3, 0.1]),
+        "shape 'wall'.size: got [0.1, -0.3, 0.1]",
+    ),
+    "box of one size": (lambda s: oo.Shape("wall", "box", POSE, size=-0.3), "shape 'wall'.size"),
+    "cone": (lambda s: oo.Shape("c", "cone", POSE, radius=0.1), "shape 'c'.shape: got 'cone'"),
+    "sphere without radius": (
+        lambda s: oo.Shape("ball", "sphere", POSE),
+        "shape 'ball'.radius: got None",
+    ),
+    "box with a radius": (
+        lambda s: oo.Shape("wall", "box", POSE, size=[0.1] * 3, radius=0.1),
+        "shape 'wall'.radius",
+    ),
+    "zero quaternion": (
+        lambda s: oo.Shape("ball", "sphere", [0.5, 0, 0.2, 0, 0, 0, 0], radius=0.1),
+        "shape 'ball'.pose",
+    ),
+    "unnamed shape": (lambda s: oo.Shape("", "sphere", POSE, radius=0.1), "shape.name"),
+    "weightless object": (
+        lambda s: dataclasses.replace(s.problem.object, mass=0.0),
+        "shape 'can'.mass: got 0.0",
+    ),
+    "obstacle with a mass": (
+        lambda s: dataclasses.replace(
+            s.problem, obstacles=[oo.Shape("block", "box", POSE, size=[0.1] * 3, mass=1.0)]
+        ),
+        "problem.obstacles[0].mass: got 1.0",
+    ),
 }
 
 
@@ -77,3 +132,65 @@ def test_bad_argument_is_a_config_error_naming_it(setup, case):
     with pytest.raises(oo.ConfigError) as error:
         call(setup)
     assert named in str(error.value)
+
+
+@pytest.mark.parametrize("kind", [og.PRM, og.PRMstar, og.AORRTC], ids=lambda k: k.__name__)
+def test_planner_refused_by_name_is_refused_as_an_instance(setup, kind):
+    """An OMPL planner refused by name is refused, with the reason, when given built:
+    PRM and PRMstar hung on the Python goal region and AORRTC crashed."""
+    planner = kind(setup.space_information)
+    try:
+        with pytest.raises(oo.ConfigError) as error:
+            setup.solve(time_limit=1.0, planner=planner)
+    finally:
+        if kind is og.AORRTC:  # OMPL 2.0.1 crashes freeing an AORRTC never set up
+            planner.setProblemDefinition(setup.simple_setup.getProblemDefinition())
+            planner.setup()
+    assert f"planner: got {kind.__name__!r}" in str(error.value)
+    assert ("crashes" if kind is og.AORRTC else "deadlocks") in str(error.value)
+
+
+def test_ikbirrt_instance_keeps_its_own_seed(setup):
+    """Without a seed of the call, an IKBiRRT built with a seed plans the same path every
+    time and the plan records that seed; a seed of the call still wins."""
+    options = oo.IKBiRRTOptions(seed=3)
+    plans = [setup.solve(planner=oo.IKBiRRT(setup.space_information, options)) for _ in range(3)]
+    assert [plan.seed for plan in plans] == [3, 3, 3]
+    assert all(np.array_equal(plan.path, plans[0].path) for plan in plans)
+    same = setup.solve(planner=oo.IKBiRRT(setup.space_information), seed=3)
+    assert same.seed == 3 and np.array_equal(same.path, plans[0].path)
+    assert setup.solve(planner=oo.IKBiRRT(setup.space_information, options), seed=5).seed == 5
+
+
+@pytest.mark.parametrize(
+    ("columns", "value", "joint"),
+    [(0, 10.0, "panda_joint1"), (slice(7, None), 0.5, "panda_finger_joint1")],
+    ids=["arm", "hand"],
+)
+def test_verify_refuses_a_row_beyond_the_joint_limits(setup, columns, value, joint):
+    """``verify`` names the row, the joint and the value of a path that leaves its joint
+    limits, arm or hand, even where the row is collision-free."""
+    path = setup.solve(seed=1).path
+    setup.verify(path)
+    row = len(path) // 2
+    bad = path.copy()
+    bad[row, columns] = value
+    with pytest.raises(oo.VerifyFailed) as error:
+        setup.verify(bad)
+    assert f"path row {row}: joint {joint} at {value:g}" in str(error.value)
+
+
+def test_shapes_and_problems_built_in_code_take_lists_arrays_and_tuples(setup):
+    """A shape's pose and size given as a list, a tuple or an array make the same shape
+    (a unit quaternion normalised, floats stored); a tuple of obstacles becomes a list."""
+    size = [0.1, 0.2, 0.3]
+    box = [
+        oo.Shape("crate", "box", kind(POSE), size=kind(size)) for kind in (list, tuple, np.array)
+    ]
+    for shape in box:
+        assert isinstance(shape.pose, np.ndarray) and isinstance(shape.size, np.ndarray)
+        assert np.array_equal(shape.pose, POSE) and np.array_equal(shape.size, size)
+    tilted = oo.Shape("ball", "sphere", [0, 0, 0, 0, 0, 0, 1.0005], radius=np.float32(0.25))
+    assert tilted.pose[-1] == 1.0 and tilted.radius == 0.25 and type(tilted.radius) is float
+    problem = _with_obstacles(setup, (*setup.problem.obstacles, box[0]))
+    assert isinstance(problem.obstacles, list) and problem.obstacles[-1] is box[0]

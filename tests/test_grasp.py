@@ -154,11 +154,11 @@ def test_an_obstacle_stops_a_finger(panda_grasp: tuple[oo.Problem, np.ndarray]) 
     problem, q = panda_grasp
     result = close_hand(problem, q)
     left = next(c for c in result.contacts if "left" in c.link)
-    wall = oo.Shape(
-        "wall", "box", np.r_[left.point - 0.002 * left.normal, 0, 0, 0, 1], size=np.full(3, 0.002)
+    block = oo.Shape(
+        "block", "box", np.r_[left.point - 0.002 * left.normal, 0, 0, 0, 1], size=np.full(3, 0.002)
     )
-    blocked = close_hand(dataclasses.replace(problem, obstacles=[*problem.obstacles, wall]), q)
-    assert [c.shape for c in blocked.obstacle_contacts] == ["wall"]
+    blocked = close_hand(dataclasses.replace(problem, obstacles=[*problem.obstacles, block]), q)
+    assert [c.shape for c in blocked.obstacle_contacts] == ["block"]
     assert all(0 < c.distance <= TOLERANCE for c in blocked.obstacle_contacts)
     assert not any("left" in c.link for c in blocked.contacts)
 

@@ -101,7 +101,7 @@ def physics_judge(setup: GraspPlanningSetup, plan: Plan, truth: Problem) -> dict
     estimate, true = setup.problem.object, truth.object
     assert estimate is not None and true is not None
     data = plan.to_dict()
-    data["scene"] = {**data["scene"], "object": dict(true.raw)}
+    data["scene"] = {**data["scene"], "object": true.to_table()}
     # The world holds the truth, so the rollout's own offset is 0; the trial reports the
     # truth's planar offset from the estimate, as the kinematic judge does.
     dx, dy, yaw = planar_offset(estimate, true)
