@@ -12,6 +12,7 @@ completes the plan.
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Sequence
 
 import numpy as np
@@ -202,7 +203,8 @@ class IKGoalRegion(ob.GoalSampleableRegion):
     Args:
         si: OMPL space information over the arm joints.
         goal: The numpy-level goal.
-        max_samples: ``maxSampleCount()``: how many goal samples a planner may draw.
+        max_samples: ``maxSampleCount()``: how many goal samples a planner may draw (fewer
+            once :attr:`deadline` has passed).
         pregrasp: Length [m] of the retreat from each sampled grasp configuration (0: the
             grasp configurations themselves are the samples).
         pregrasp_step: Palm displacement [m] of one retreat step.
@@ -242,6 +244,12 @@ class IKGoalRegion(ob.GoalSampleableRegion):
         #: Goals drawn by planners, and the checker's motion count at the last draw.
         self.draws = 0
         self.motions_at_draw = 0
+        #: A ``time.perf_counter()`` value past which no more goals are offered
+        #: (:meth:`maxSampleCount` falls to the draws made): BITstar and FMT draw
+        #: ``maxSampleCount()`` goals up front without looking at the time, an IK solve
+        #: each (10,000 took 73 s of a 5 s limit). :meth:`GraspPlanningSetup.solve
+        #: <openup_ompl.planning.GraspPlanningSetup.solve>` sets it to its time limit.
+        self.deadline: float | None = None
         goal.ensure_solution()
 
     def sampleGoal(self, state: ob.State) -> None:  # noqa: N802 - OMPL's name
@@ -299,6 +307,8 @@ class IKGoalRegion(ob.GoalSampleableRegion):
         self._retreats.clear()
 
     def maxSampleCount(self) -> int:  # noqa: N802 - OMPL's name
+        if self.deadline is not None and time.perf_counter() >= self.deadline:
+            return min(self.draws, self.max_samples)
         return self.max_samples
 
     def couldSample(self) -> bool:  # noqa: N802 - OMPL's name

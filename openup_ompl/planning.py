@@ -490,14 +490,24 @@ class GraspPlanningSetup:
         started = time.perf_counter()
         restarts = 0
         restarting = isinstance(planner, str) and planner.lower() in RESTARTED_PLANNERS
-        if restarting:
-            status, restarts = self._solve_restarting(started + float(time_limit))
-        else:
-            # OMPL's solve(seconds) evaluates a limit of 1 s or more in a thread of its own
-            # that it starts and joins on every call: 1.3 ms of a 4 ms Panda solve (the
-            # held-out wall_over scene, 40 seeds), against 0.02 ms for the same limit
-            # checked inline.
-            status = ss.solve(ob.timedPlannerTerminationCondition(float(time_limit)))
+        # The goal set on the setup (a user's own IKGoalRegion too) stops offering goals
+        # at the time limit, which planners that draw them all up front do not watch.
+        goal = ss.getGoal()
+        region = goal if isinstance(goal, IKGoalRegion) else None
+        if region is not None:
+            region.deadline = started + float(time_limit)
+        try:
+            if restarting:
+                status, restarts = self._solve_restarting(started + float(time_limit))
+            else:
+                # OMPL's solve(seconds) evaluates a limit of 1 s or more in a thread of its
+                # own that it starts and joins on every call: 1.3 ms of a 4 ms Panda solve
+                # (the held-out wall_over scene, 40 seeds), against 0.02 ms for the same
+                # limit checked inline.
+                status = ss.solve(ob.timedPlannerTerminationCondition(float(time_limit)))
+        finally:
+            if region is not None:
+                region.deadline = None
         solve_time = time.perf_counter() - started
         name = instance.getName()
         status_text = status.getStatus().name.lower().replace("_", " ")

@@ -194,3 +194,21 @@ def test_shapes_and_problems_built_in_code_take_lists_arrays_and_tuples(setup):
     assert tilted.pose[-1] == 1.0 and tilted.radius == 0.25 and type(tilted.radius) is float
     problem = _with_obstacles(setup, (*setup.problem.obstacles, box[0]))
     assert isinstance(problem.obstacles, list) and problem.obstacles[-1] is box[0]
+
+
+def test_a_goal_region_stops_offering_goals_at_the_time_limit():
+    """BITstar draws ``maxSampleCount()`` goals up front without looking at the time, an
+    IK solve each: a region of 10,000 (the class's default) ran 73 s of a 5 s limit. solve()
+    gives the region its deadline, past which it offers no more; the region set on the
+    setup by hand gets it too, and loses it after the run."""
+    from ompl import geometric as og
+
+    setup = oo.GraspPlanningSetup(oo.load_scene(oo.default_scene_path()))
+    region = oo.IKGoalRegion(setup.space_information, setup.goal, max_samples=10_000)
+    setup.simple_setup.setGoal(region)
+    try:
+        setup.solve(time_limit=0.5, planner=og.BITstar(setup.space_information), seed=1)
+    except oo.PlanningFailed:
+        pass  # the run's outcome is not the point: how many goals it drew is
+    assert 0 < region.draws < region.max_samples
+    assert region.deadline is None and region.maxSampleCount() == 10_000
