@@ -2,11 +2,11 @@
 
 One scene, one camera (160 x 120 by default); each view draws fresh sensor noise. Reported:
 median and 90th percentile ms of the ray cast (``DepthCamera.render``, ``mj_multiRay``),
-the noise model and free-space mask (``noisy_cloud`` and ``silhouette_of``), the fit
-(``fit_superquadric``, weighted, with the silhouette) and their sum (wall clock), and the
-sum's CPU time (``time.process_time``: what one core spends, whatever else the machine
-runs); object points per view. Set ``OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1`` (as
-below) to measure one core.
+the noise model and free-space mask (``noisy_cloud``, ``support_under``,
+``silhouette_of``), the fit (``fit_superquadric``, weighted, with the silhouette) and
+their sum (wall clock), and the sum's CPU time (``time.process_time``: what one core
+spends, whatever else the machine runs); object points per view. Set
+``OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1`` (as below) to measure one core.
 
 Run (about 15 s on an idle core)::
 
@@ -57,7 +57,7 @@ def measure(scene: Path, views: int, width: int, height: int, seed: int) -> dict
         view = camera.render()
         t1 = time.perf_counter()
         cloud = noisy_cloud(view, noise, rng)
-        silhouette = silhouette_of(view, noise, options)
+        silhouette = silhouette_of(view, noise, options, camera.support_under(cloud.points))
         t2 = time.perf_counter()
         fit_superquadric(cloud.points, None, silhouette, weights)
         t3, c3 = time.perf_counter(), time.process_time()

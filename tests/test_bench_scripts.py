@@ -108,3 +108,12 @@ def test_law_shape_follows_each_path_with_the_other_hand(tmp_path: Path) -> None
     assert paths_w == paths_law == 8
     assert 0 <= blocked_w <= paths_w and 0 <= blocked_law <= paths_law
     assert out.stat().st_size > 10_000
+
+
+def test_perception_accuracy_prints_a_row_per_object() -> None:
+    """The calibration table behind the README's perception figures: one row per object,
+    its views all fitted or counted as refused."""
+    done = _run("perception_accuracy.py", "--objects", "box", "can", "--noise", "1", "--views", "3")
+    assert done.returncode == 0, done.stderr
+    rows = [line for line in done.stdout.splitlines() if line.startswith(("| box", "| can"))]
+    assert len(rows) == 2 and all("| 3 (" in row for row in rows)
