@@ -4,6 +4,7 @@ covariance's calibration, the u rule and ``openup-ompl perceive``."""
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 from pathlib import Path
 
@@ -285,6 +286,7 @@ def test_perceive_cli_writes_a_plannable_scene(tmp_path: Path) -> None:
     out = tmp_path / "out"
     assert main(["perceive", str(scene), "--seed", "3", "--out", str(out)]) == 0
     assert (out / "cloud.npz").is_file()
+    assert json.loads((out / "perception.json").read_text())["object"] == "can"
     perceived = out / "perceived.toml"
     problem = ou.load_scene(perceived)
     truth = ou.load_scene(scene)
@@ -536,3 +538,15 @@ def test_an_interrupted_closed_loop_writes_the_views_that_ended(tmp_path):
     trials = {int(row["trials"]) for row in rows}
     assert len(rows) == 4 and len(trials) == 1 and trials.pop() >= 2
     assert os.path.getsize(out / "closed_loop_trials.json") > 0
+
+
+def test_a_camera_built_on_another_object_is_refused(lwa3_can, lwa3_camera):
+    """A DepthCamera measures its own scene's object: handed a problem with another
+    object (or the same one moved) it would report that object's fit as this one's."""
+    DX = np.array([0.01, 0, 0, 0, 0, 0, 0])  # noqa: N806 - a constant of the test
+    moved = dataclasses.replace(
+        lwa3_can, object=dataclasses.replace(lwa3_can.object, pose=lwa3_can.object.pose + DX)
+    )
+    with pytest.raises(ConfigError, match="^depth_camera: got .a camera on 'can'"):
+        perceive(moved, depth_camera=lwa3_camera)
+    assert perceive(lwa3_can, depth_camera=lwa3_camera).fit.points > 0

@@ -53,7 +53,8 @@ def perceive_command(args: argparse.Namespace) -> int:
     error = (perception.fit.superquadric.position - problem.object.pose[:3]) * 1e3
     sigma = np.sqrt(np.diag(perception.fit.position_covariance)) * 1e3
     print(
-        f"{perception.fit.points} object points ({perception.cloud.dropped} dropped at grazing"
+        f"{problem.object.name}: {perception.fit.points} object points"
+        f" ({perception.cloud.dropped} dropped at grazing"
         f" incidence); position error {np.round(error, 1).tolist()} mm, sigma"
         f" {np.round(sigma, 1).tolist()} mm; mean residual"
         f" {perception.fit.mean_residual * 1e3:.2f} mm; u = {perception.u:.3f}"

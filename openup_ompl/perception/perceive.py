@@ -20,6 +20,7 @@ import pinocchio as pin
 from openup_ompl import _toml
 from openup_ompl._io import make_dir, write_atomic
 from openup_ompl.exceptions import (
+    ConfigError,
     DegenerateFit,
     InvalidProblem,
     ObjectCutOff,
@@ -149,6 +150,8 @@ def perceive(
         weighted: Weight the fit by the sensor's noise model (:func:`normal_sigma`).
 
     Raises:
+        ConfigError: ``depth_camera`` was built on another object (or pose) than the
+            problem's.
         ObjectNotVisible: No point of the object is measured.
         TooFewPoints: Too few for the fit.
         ObjectCutOff: The object's pixels reach the image border (the view does not
@@ -160,6 +163,14 @@ def perceive(
     rng = rng if rng is not None else np.random.default_rng(0)
     if depth_camera is None and camera is None:
         camera = camera_of_scene(problem)
+    if depth_camera is not None and not _same_object(depth_camera.problem, problem):
+        # Its scene is its own: it would measure that scene's object, reported as this one.
+        theirs, ours = (getattr(q.object, "name", None) for q in (depth_camera.problem, problem))
+        raise ConfigError(
+            "depth_camera",
+            f"a camera on {theirs!r}",
+            f"a DepthCamera built on this problem's object ({ours!r}, at the same pose)",
+        )
     cam = depth_camera or DepthCamera(problem, camera)
     view = cam.render()
     cloud = noisy_cloud(view, noise, rng)
@@ -203,6 +214,15 @@ def perceive(
         sizes=result.superquadric.sizes,
     )
     return Perception(cloud, result, pose, u, cam.position.copy(), cam.target.copy())
+
+
+def _same_object(a: Problem, b: Problem) -> bool:
+    """Whether two problems hold the same object at the same pose (the camera's scene)."""
+    if a is b:
+        return True
+    if a.object is None or b.object is None:
+        return a.object is b.object
+    return a.object.to_table() == b.object.to_table()
 
 
 def estimated_pose(fit: SuperquadricFit, nominal: Shape) -> np.ndarray:
@@ -346,7 +366,11 @@ def write_perception(problem: Problem, perception: Perception, out: str | Path) 
         sigma_lateral=perception.cloud.sigma_lateral,
         scene_points=perception.cloud.scene_points,
     )
-    summary = {**perception.summary(), "true_pose": [float(x) for x in problem.object.pose]}
+    summary = {
+        "object": problem.object.name,
+        **perception.summary(),
+        "true_pose": [float(x) for x in problem.object.pose],
+    }
     write_atomic(paths["summary"], json.dumps(summary, indent=2) + "\n")
     write_atomic(paths["scene"], perceived_toml(problem, perception))
     return paths
