@@ -396,6 +396,7 @@ def test_perceive_reads_the_scene_camera_as_the_command_does():
         ({"policies": ("0", "0.0")}, "policies"),
         ({"noises": (1.0, 1.0)}, "noises"),
         ({"distances": (0.6, 0.6)}, "distances"),
+        ({"distances": (-1.0,)}, "camera.distance"),
         ({"camera": CameraOptions(position=(1.2, -0.2, 0.6))}, "distances"),
     ],
 )
@@ -550,3 +551,47 @@ def test_a_camera_built_on_another_object_is_refused(lwa3_can, lwa3_camera):
     with pytest.raises(ConfigError, match="^depth_camera: got .a camera on 'can'"):
         perceive(moved, depth_camera=lwa3_camera)
     assert perceive(lwa3_can, depth_camera=lwa3_camera).fit.points > 0
+
+
+def test_a_can_as_long_as_it_is_wide_is_read_upright():
+    """A squat can (r 33 mm, 66 mm long) leaves the half-sizes no say about its axis: a
+    box-like superquadric with its x vertical (half-sizes 33, 25, 31.6 mm) was read lying
+    on its side. The scene's axis breaks the tie; a superquadric round about its z
+    (e2 >= 0.5, flat ends) is read along its z."""
+    from openup_ompl.perception.superquadric import N_PARAMETERS, Superquadric, SuperquadricFit
+
+    nominal = Shape("can", "cylinder", np.array([0.75, -0.2, 0.033, 0, 0, 0, 1.0]), radius=0.033,
+                    length=0.066)  # fmt: skip
+    x_up = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])  # its x is world z
+    for sizes, exponents, rotation in (
+        ([0.033, 0.025, 0.0316], [0.09, 0.08], x_up),
+        ([0.033, 0.034, 0.033], [0.1, 1.0], np.eye(3)),
+    ):
+        fit = SuperquadricFit(
+            Superquadric(np.array(sizes), np.array(exponents), nominal.pose[:3], rotation),
+            np.eye(N_PARAMETERS), 0.001, 0.001, 300, 50,
+        )  # fmt: skip
+        axis = pin.XYZQUATToSE3(estimated_pose(fit, nominal)).rotation[:, 2]
+        assert abs(axis[2]) == pytest.approx(1.0), (sizes, axis)
+
+
+@pytest.mark.parametrize("stand", ["held 3 cm up", "on a post"])
+def test_no_support_is_assumed_under_an_object_that_does_not_stand_on_it(lwa3_can, stand):
+    """Rays cast down through a can held 3 cm above the table (or standing on a thin post
+    they miss) hit the table; the view sees space under it, so the fit is not pulled
+    down onto the table (it was, 14 mm, with a 0.15 mm sigma)."""
+    from openup_ompl.perception.camera import camera_of_scene, gap_under
+
+    can = lwa3_can.object
+    raised = dataclasses.replace(can, pose=can.pose + np.array([0, 0, 0.03, 0, 0, 0, 0]))
+    obstacles = list(lwa3_can.obstacles)
+    if stand == "on a post":
+        x, y = can.pose[:2]
+        post = [x, y, 0.015, 0, 0, 0, 1.0]
+        obstacles.append(Shape("post", "cylinder", np.array(post), radius=0.008, length=0.03))
+    problem = dataclasses.replace(lwa3_can, object=raised, obstacles=obstacles)
+    camera = DepthCamera(problem, camera_of_scene(problem))
+    assert gap_under(camera.render()) > 0.5 and gap_under(DepthCamera(lwa3_can).render()) < 0.5
+    for seed in (1, 2):
+        seen = perceive(problem, depth_camera=camera, rng=np.random.default_rng(seed))
+        assert abs(seen.fit.superquadric.position[2] - raised.pose[2]) < 0.005

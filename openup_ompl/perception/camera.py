@@ -34,6 +34,13 @@ SUPPORT_TOLERANCE = 0.01
 #: ... and at most this far [m] below it: the Panda scene's wall hides its can's lowest
 #: 22-25 mm; an object held higher above a surface is not standing on it.
 SUPPORT_GAP = 0.05
+#: A pixel just below the object's lowest one in an image column that sees a surface this
+#: much [m] deeper than that object pixel sees under the object: a gap, where a standing
+#: object's base meets the table (the table in front of it is nearer, not deeper). A
+#: round object resting on the table shows some depth under its belly: r (1 - cos e) /
+#: sin e from elevation e, 15 mm for a 40 mm ball from 40 deg, 23 mm from 60; a can held
+#: 3 cm up shows 47 mm from 40 deg.
+GAP_DEPTH = 0.025
 
 
 @dataclass(frozen=True)
@@ -346,23 +353,56 @@ class DepthCamera:
             focal=self._focal,
         )
 
-    def support_under(self, points: np.ndarray) -> float | None:
-        """Height [m] of the surface the object stands on, from its measured ``points``: a
-        ray cast straight down from their top at their centre, past the object, hits it;
-        ``None`` when nothing lies below, or what it hits is not within
-        :data:`SUPPORT_TOLERANCE` above and :data:`SUPPORT_GAP` below the points' lowest
-        (then it is not what the object stands on)."""
+    def support_under(self, points: np.ndarray, view: DepthView | None = None) -> float | None:
+        """Height [m] of the surface the object stands on, from its measured ``points``:
+        rays cast straight down from their top, past the object, at their centre and at
+        their four extremes in x and y, all hit it (within :data:`SUPPORT_TOLERANCE` of
+        each other: a flat surface under the whole visible footprint, not an edge under
+        part of it). ``None`` when a ray hits nothing, the rays disagree, the surface is
+        not within :data:`SUPPORT_TOLERANCE` above and :data:`SUPPORT_GAP` below the
+        points' lowest, or the ``view`` sees a gap under the object in most of its image
+        columns (:func:`gap_under`: held above the surface, or on a stand the rays miss)."""
         import mujoco
 
+        if view is not None and gap_under(view) > 0.5:
+            return None
         points = np.asarray(points, dtype=float)
-        start = np.array([*points[:, :2].mean(axis=0), points[:, 2].max()])
+        top = float(points[:, 2].max())
+        feet = [points[:, :2].mean(axis=0)]
+        for axis in (0, 1):
+            feet += [points[np.argmin(points[:, axis]), :2], points[np.argmax(points[:, axis]), :2]]
         geom = np.array([-1], dtype=np.int32)
         down = np.array([0.0, 0.0, -1.0])
-        distance = mujoco.mj_ray(
-            self.model, self.data, start, down, None, 1, self._object_body, geom
-        )
-        if geom[0] < 0:
+        heights = []
+        for foot in feet:
+            start = np.array([foot[0], foot[1], top])
+            distance = mujoco.mj_ray(
+                self.model, self.data, start, down, None, 1, self._object_body, geom
+            )
+            if geom[0] < 0:
+                return None
+            heights.append(top - distance)
+        height = float(max(heights))
+        if height - min(heights) > SUPPORT_TOLERANCE:
             return None
-        height = float(start[2] - distance)
         lowest = float(points[:, 2].min())
         return height if -SUPPORT_GAP <= height - lowest <= SUPPORT_TOLERANCE else None
+
+
+def gap_under(view: DepthView) -> float:
+    """The share of the object's image columns in which the pixel just below its lowest
+    object pixel sees a surface more than :data:`GAP_DEPTH` deeper than that pixel: space
+    seen under the object (0 for an object standing on the table, whose base meets the
+    nearer table in front of it; columns whose next pixel is off the image, unmeasured or
+    nearer, such as a wall in front, say nothing)."""
+    on_object = view.on_object.reshape(view.height, view.width)
+    depth = view.depth.reshape(view.height, view.width)
+    columns = np.flatnonzero(on_object.any(axis=0))
+    if columns.size == 0:
+        return 0.0
+    rows = view.height - 1 - np.argmax(on_object[::-1, columns], axis=0)  # lowest object pixel
+    below = rows + 1
+    inside = below < view.height
+    cols, rows, below = columns[inside], rows[inside], below[inside]
+    deeper = depth[below, cols] > depth[rows, cols] + GAP_DEPTH  # NaN (no hit) compares False
+    return float(np.count_nonzero(deeper & ~on_object[below, cols]) / columns.size)

@@ -126,8 +126,8 @@ class ClosedLoopOptions:
         ):
             if len(set(values)) != len(values):
                 raise ConfigError(name, list(getattr(self, name)), "distinct values")
-        if self.camera is not None:
-            self.cameras(self.camera)
+        # Each distance checked as a camera's (the scene's camera is known only later).
+        self.cameras(self.camera if self.camera is not None else CameraOptions())
         check_seeds(self.first_seed, self.trials, MAX_TRIALS, "trials")
         for name in ("first_seed", "trials"):  # numpy integers accepted, stored as int
             object.__setattr__(self, name, int(getattr(self, name)))
