@@ -151,7 +151,7 @@ def make_tasks(
 
     Run ``i`` has seed ``seed + i`` for every problem, planner and hand, so the
     configurations are compared on the same seeds. The keys carry a digest of the time
-    limit and of the problem's files (:func:`~openup_ompl.executor.settings_digest`).
+    limit, the first seed and the problem's files (:func:`~openup_ompl.executor.settings_digest`).
 
     Raises:
         ConfigError: Unknown planner or hand, ``runs`` outside ``[1, MAX_RUNS]``, seeds
@@ -168,10 +168,10 @@ def make_tasks(
     tasks = []
     for problem in problems:
         ident, path = problem_id(Path(problem)), str(Path(problem).resolve())
-        # A rerun into the same shards reuses a run only with the same time limit and the
-        # same scene, robot and URDF files.
+        # A rerun into the same shards reuses a run only with the same time limit, first
+        # seed, and scene, robot and URDF files.
         digest = settings_digest(
-            {"time_limit": float(time_limit)}, load_scene(problem).source_files()
+            {"time_limit": float(time_limit), "seed": seed}, load_scene(problem).source_files()
         )
         for name in names:
             for hand in hands:

@@ -244,12 +244,8 @@ class IKGoalRegion(ob.GoalSampleableRegion):
         #: Goals drawn by planners, and the checker's motion count at the last draw.
         self.draws = 0
         self.motions_at_draw = 0
-        #: A ``time.perf_counter()`` value past which no more goals are offered
-        #: (:meth:`maxSampleCount` falls to the draws made): BITstar and FMT draw
-        #: ``maxSampleCount()`` goals up front without looking at the time, an IK solve
-        #: each (10,000 took 73 s of a 5 s limit). :meth:`GraspPlanningSetup.solve
-        #: <openup_ompl.planning.GraspPlanningSetup.solve>` sets it to its time limit.
-        self.deadline: float | None = None
+        self._deadline: float | None = None
+        self._draws_before = 0
         goal.ensure_solution()
 
     def sampleGoal(self, state: ob.State) -> None:  # noqa: N802 - OMPL's name
@@ -306,9 +302,24 @@ class IKGoalRegion(ob.GoalSampleableRegion):
         """Drop the pregrasp states sampled so far (a new run samples its own)."""
         self._retreats.clear()
 
+    @property
+    def deadline(self) -> float | None:
+        """A ``time.perf_counter()`` value past which no more goals are offered than the
+        run has drawn since it was set (at least one: BITstar cannot start without a
+        goal). BITstar and FMT draw ``maxSampleCount()`` goals up front without looking
+        at the time, an IK solve each (10,000 took 73 s of a 5 s limit).
+        :meth:`GraspPlanningSetup.solve <openup_ompl.planning.GraspPlanningSetup.solve>`
+        sets it to its time limit and clears it after."""
+        return self._deadline
+
+    @deadline.setter
+    def deadline(self, value: float | None) -> None:
+        self._deadline = value
+        self._draws_before = self.draws  # a planner counts its own draws from 0
+
     def maxSampleCount(self) -> int:  # noqa: N802 - OMPL's name
-        if self.deadline is not None and time.perf_counter() >= self.deadline:
-            return min(self.draws, self.max_samples)
+        if self._deadline is not None and time.perf_counter() >= self._deadline:
+            return min(max(1, self.draws - self._draws_before), self.max_samples)
         return self.max_samples
 
     def couldSample(self) -> bool:  # noqa: N802 - OMPL's name

@@ -73,16 +73,16 @@ def test_suites_of_all_robots_make_distinct_problems() -> None:
 
 def test_a_rerun_reuses_a_run_only_with_the_same_time_and_files(tmp_path: Path) -> None:
     """The task keys (the shards a rerun into the same folder reuses) change with the time
-    limit and with the problem file's contents: a finished run of another time limit, or
-    of the scene before an edit, is not taken for this one."""
+    limit, the first seed and the problem file's contents: a finished run of another time
+    limit or seed, or of the scene before an edit, is not taken for this one."""
     problem = tmp_path / "table_pick.toml"
     problem.write_text((default_problems_dir() / "table_pick.toml").read_text())
 
-    def key(time_limit: float = 1.0) -> str:
-        return make_tasks([problem], ["ikbirrt"], runs=1, time_limit=time_limit)[0].key
+    def key(time_limit: float = 1.0, seed: int = 1) -> str:
+        return make_tasks([problem], ["ikbirrt"], runs=1, time_limit=time_limit, seed=seed)[0].key
 
     first = key()
-    assert key() == first and key(2.0) != first
+    assert key() == first and key(2.0) != first and key(seed=100) != first
     problem.write_text(problem.read_text().replace("u = 0.3", "u = 0.31"))
     assert key() != first
 
