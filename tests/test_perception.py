@@ -454,8 +454,11 @@ def test_closed_loop_options_default_to_the_scene_camera():
     problem = ou.load_scene(ROOT / "scenes" / "panda_can.toml")
     sweep = {"policies": ("0.3",), "noises": (1.0,), "distances": (0.8,), "trials": 1}
 
+    lines: list[str] = []
+
     def run(**camera: CameraOptions) -> list[dict]:
-        return closed_loop(problem, ClosedLoopOptions(**sweep, **camera), judge=judged)
+        options = ClosedLoopOptions(**sweep, **camera)
+        return closed_loop(problem, options, judge=judged, progress=lines.append)
 
     def judged(setup, plan, truth):  # type: ignore[no-untyped-def]
         return {"success": True}
@@ -464,6 +467,8 @@ def test_closed_loop_options_default_to_the_scene_camera():
     assert [record["seen"] for record in default] == [True]
     assert default == run(camera=camera_of_scene(problem))
     assert [record["seen"] for record in run(camera=CameraOptions())] == [False]
+    # Each view reports its end, a refused one too (it had printed nothing).
+    assert len(lines) == 3 and "(not seen: TooFewPoints)" in lines[-1]
 
 
 def test_support_under_the_object_is_the_table_it_stands_on():
@@ -526,12 +531,15 @@ def test_an_interrupted_closed_loop_writes_the_views_that_ended(tmp_path):
     )
     assert process.stderr is not None
     ended = 0
-    for line in process.stderr:
-        ended += " done" in line
-        if ended == 2:
-            process.send_signal(signal.SIGINT)
-            break
-    stdout, stderr = process.communicate(timeout=120)
+    try:
+        for line in process.stderr:
+            ended += " done" in line
+            if ended == 2:
+                process.send_signal(signal.SIGINT)
+                break
+        stdout, stderr = process.communicate(timeout=120)
+    finally:
+        process.kill()  # a no-op once it has ended; never left running
     assert process.returncode == 130, stderr
     assert "Traceback" not in stderr and "interrupted" in stderr
     with (out / "closed_loop.csv").open() as handle:

@@ -222,6 +222,11 @@ def closed_loop(
                                 "error": str(error),
                             }
                         )
+                    if progress is not None:
+                        progress(
+                            f"noise {noise:g}, distance {distance:g} m, seed {seed} done"
+                            f" (not seen: {type(error).__name__})"
+                        )
                     continue
                 estimated = at_estimate(problem, seen.pose)
                 error_mm = float(np.linalg.norm(seen.pose[:2] - problem.object.pose[:2]) * 1e3)
