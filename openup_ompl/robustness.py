@@ -248,9 +248,7 @@ def displaced(problem: Problem, dx: float, dy: float, yaw: float = 0.0) -> Probl
     pose = pin.SE3ToXYZQUAT(
         pin.SE3(turned, placement.translation + np.array([float(dx), float(dy), 0.0]))
     )
-    raw = {**shape.raw, "pose": [float(x) for x in pose]}
-    moved: Shape = dataclasses.replace(shape, pose=np.asarray(pose, dtype=float), raw=raw)
-    return dataclasses.replace(problem, object=moved)
+    return dataclasses.replace(problem, object=shape.at(pose))
 
 
 def check_scene(scene: str | Path) -> Problem:

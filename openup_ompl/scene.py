@@ -3,6 +3,7 @@ obstacles. Every table rejects keys it does not know, naming the nearest valid o
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -148,6 +149,13 @@ class Shape:
             checked["friction"] = _toml.number(self.friction, f"{where}.friction", low=0.0)
         for key, value in checked.items():  # frozen: set as the dataclass's own __init__ does
             object.__setattr__(self, key, value)
+
+    def at(self, pose: np.ndarray) -> Shape:
+        """The same shape at ``pose`` ``[x, y, z, qx, qy, qz, qw]`` (its :attr:`raw` table
+        moved along): the object displaced, or where perception estimates it."""
+        pose = np.asarray(pose, dtype=float)
+        raw = {**self.raw, "pose": pose.tolist()}
+        return dataclasses.replace(self, pose=pose, raw=raw)
 
     def to_table(self) -> dict[str, Any]:
         """The shape as a scene file's table, written from its fields (JSON and TOML

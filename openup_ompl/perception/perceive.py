@@ -325,9 +325,7 @@ def at_estimate(problem: Problem, pose: np.ndarray) -> Problem:
     pose = _toml.pose(pose, "pose")
     moved = pin.XYZQUATToSE3(pose) * shape.placement.inverse()
     grasp = np.asarray(pin.SE3ToXYZQUAT(moved * problem.grasp), dtype=float)
-    raw = {**shape.raw, "pose": [float(x) for x in pose]}
-    estimated = dataclasses.replace(shape, pose=np.asarray(pose, dtype=float), raw=raw)
-    return dataclasses.replace(problem, object=estimated, grasp_pose=grasp)
+    return dataclasses.replace(problem, object=shape.at(pose), grasp_pose=grasp)
 
 
 def perceived_toml(problem: Problem, perception: Perception) -> str:
