@@ -446,9 +446,9 @@ def run_benchmark(
     out = Path(out)
     hands = ("law", "fixed") if fixed_hand else ("law",)
     found = find_problems(problems)
+    # make_tasks loads every scene (its files key the runs): a bad scene is one error
+    # here, not a failed task per run.
     tasks = make_tasks(found, planners, runs, time_limit, hands=hands, seed=seed)
-    for path in found:  # a bad scene is one error here, not a failed task per run
-        load_scene(path)
     run_tasks(tasks, out / "shards", workers=workers, scheduler=scheduler, quiet=quiet)
     records = load_records(tasks, out / "shards")
     db = build_database(records, out)
