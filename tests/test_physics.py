@@ -23,6 +23,7 @@ from openup_ompl.physics import (
     read_execution,
     rollout,
 )
+from openup_ompl.physics.record import check_execution
 from openup_ompl.physics.trajectory import time_path
 
 mujoco = pytest.importorskip("mujoco")
@@ -273,6 +274,25 @@ def test_timing_respects_the_velocity_limits():
     velocity = np.abs(np.diff(q, axis=0)) / np.diff(times)[:, None]
     assert np.all(velocity <= 0.5 * limits * 1.001)
     assert np.allclose(q[0], rows[0]) and np.allclose(q[-1], rows[-1])
+
+
+def test_the_record_names_the_jitter_drawn_on_top_of_the_offset(panda_plan):
+    """With ``object_jitter`` the object starts at offset + jitter: the record keeps the
+    offset asked for and the shift drawn (it once said only the offset, and a jittered
+    trial read as one at the asked pose)."""
+    plan = ou.read_plan(panda_plan)
+    plain = Rollout(plan).run((0.0, 0.01, 0.0), seed=3, frames=True)
+    shaken = Rollout(plan, PhysicsOptions(object_jitter=0.005)).run((0.0, 0.01, 0.0), seed=3)
+    assert plain.jitter == {"dx": 0.0, "dy": 0.0}
+    assert shaken.offset == plain.offset == {"dx": 0.0, "dy": 0.01, "yaw": 0.0}
+    shift = np.array([shaken.jitter["dx"], shaken.jitter["dy"]])
+    assert 0.0 < np.linalg.norm(shift) < 0.05
+    assert plain.frames is not None and shaken.frames is not None
+    start = np.array(shaken.frames["object"][0][:2]) - np.array(plain.frames["object"][0][:2])
+    assert np.allclose(start, shift, atol=1e-4)
+    data = shaken.to_dict(frames=False)
+    check_execution(data)
+    assert data["jitter"] == pytest.approx(shaken.jitter, abs=1e-9)
 
 
 def test_rollout_frames_follow_the_phases(panda_plan):

@@ -51,8 +51,11 @@ class ExecutionRecord:
             nothing at the end), ``"dropped"`` (lifted, then lost), ``"not lifted"``,
             ``"slipped"`` (moved in the hand beyond the thresholds); ``None`` if held.
         verdict: One line for people.
-        offset: The object's true pose error ``{"dx": m, "dy": m, "yaw": rad}`` against the
-            plan's nominal pose (world x, y; about the object's own z).
+        offset: The object's pose error asked for, ``{"dx": m, "dy": m, "yaw": rad}``,
+            against the plan's nominal pose (world x, y; about the object's own z).
+        jitter: The random horizontal shift ``{"dx": m, "dy": m}`` drawn on top of
+            :attr:`offset` (``PhysicsOptions.object_jitter``; zero without it): the
+            object's true error is ``offset + jitter``.
         seed: The run's seed.
         touched: The hand touched the object before closing.
         moved_before_closing: The object's displacement from its true pose by the end of
@@ -103,6 +106,7 @@ class ExecutionRecord:
     steps: int
     frames: dict[str, Any] | None = field(default=None, repr=False)
     source: dict[str, Any] | None = field(default=None, repr=False)
+    jitter: dict[str, float] = field(default_factory=lambda: {"dx": 0.0, "dy": 0.0})
 
     def to_dict(self, frames: bool = True) -> dict[str, Any]:
         """The file's contents (``frames=False``: without the rollout frames)."""
@@ -183,6 +187,8 @@ def check_execution(data: dict[str, Any], where: str = "") -> None:
     offset = data["offset"]
     for key in ("dx", "dy", "yaw"):
         _toml.number(_toml.require(offset, key, f"{where}offset"), f"{where}offset.{key}")
+    for key in ("dx", "dy") if "jitter" in data else ():
+        _toml.number(_toml.require(data["jitter"], key, f"{where}jitter"), f"{where}jitter.{key}")
     first = data["first_contact"]
     if first is not None:
         at = f"{where}first_contact"

@@ -581,6 +581,7 @@ class Rollout:
             cause=cause,
             verdict=verdict,
             offset={"dx": dx, "dy": dy, "yaw": yaw},
+            jitter={"dx": float(jitter[0]), "dy": float(jitter[1])},
             seed=int(seed),
             touched=bool(state["touched"]),
             moved_before_closing={"mm": moved_m * 1e3, "deg": math.degrees(moved_rad)},

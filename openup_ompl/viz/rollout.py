@@ -138,9 +138,15 @@ def _storyboard(scene: PlanScene, execution: dict[str, Any], out: str | Path, dp
     grid = fig.add_gridspec(2, len(keys), height_ratios=[1.0, 0.9])
     grid.update(left=0.005, right=0.995, top=0.85, bottom=0.06, wspace=0.02, hspace=0.12)
     offset = execution["offset"]
+    jitter = execution.get("jitter") or {"dx": 0.0, "dy": 0.0}
+    shifted = (
+        f" (+ jitter {jitter['dx'] * 100:.2g}, {jitter['dy'] * 100:.2g} cm)"
+        if any(jitter.values())
+        else ""
+    )
     fig.suptitle(
         f"physics rollout, object offset dx = {offset['dx'] * 100:g} cm, dy ="
-        f" {offset['dy'] * 100:g} cm, yaw = {np.degrees(offset['yaw']):.0f} deg:"
+        f" {offset['dy'] * 100:g} cm, yaw = {np.degrees(offset['yaw']):.0f} deg{shifted}:"
         f" {execution['verdict']}",
         fontsize=12,
         y=0.99,
