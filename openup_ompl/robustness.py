@@ -270,18 +270,21 @@ def check_scene(scene: str | Path) -> Problem:
     return problem
 
 
-def make_tasks(scene: str | Path, options: RobustnessOptions) -> list[Task]:
+def make_tasks(
+    scene: str | Path, options: RobustnessOptions, problem: Problem | None = None
+) -> list[Task]:
     """One task per ``(u, seed)``; the key carries a digest of every setting and of the
     contents of the files the plans are made from (:meth:`Problem.source_files
     <openup_ompl.scene.Problem.source_files>`), so that a rerun with other settings, or
     after one of those files was edited, never reuses a shard
-    (:func:`~openup_ompl.executor.settings_digest`).
+    (:func:`~openup_ompl.executor.settings_digest`). ``problem``: ``scene`` already
+    loaded (it is loaded here otherwise).
 
     Raises:
         ConfigError, RobotNotFound: What :func:`~openup_ompl.scene.load_scene` raises
             for ``scene`` (a missing file, a bad value, an unknown robot).
     """
-    problem = load_scene(scene)
+    problem = load_scene(scene) if problem is None else problem
     path = str(problem.path)
     cells = perturbations(options.deltas, options.yaws)
     shared = {
@@ -525,7 +528,7 @@ def run_robustness(
     options = options or RobustnessOptions()
     problem = check_scene(scene)
     out = make_dir(Path(out))
-    tasks = make_tasks(scene, options)
+    tasks = make_tasks(scene, options, problem)
     run_tasks(tasks, out / "shards", workers=workers, scheduler=scheduler, quiet=quiet)
     records = load_records(tasks, out / "shards")
     rows = summarize(records)
