@@ -5,8 +5,9 @@ For each object and noise scale it perceives ``--views`` noisy views (seeds from
 the fit's 2-sigma region (planar, world x-y: chi^2_2 = 6.18; and in 3-D: chi^2_3 = 8.03,
 both the probability of +-2 sigma in one dimension, 95.45 % for a calibrated covariance),
 the mean and standard deviation of the position error per axis, the mean ``u``, the mean
-residual and fitted diameter (the paper's two other candidates for ``u``), and the views
-refused (``PerceptionError``, by kind).
+residual and fitted diameter (the paper's two other candidates for ``u``), the views
+refused (``PerceptionError``, by kind) and the median wall time of a view (ray cast, noise,
+fit).
 
 The objects: the shipped LWA3 scene's can (``scenes/lwa3_sdh_can.toml``, the README's
 noise table) and, at noise 1, the same scene with the can swapped for a box, a sphere, a
@@ -22,6 +23,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import sys
+import time
 from collections import Counter
 from pathlib import Path
 from typing import Any
@@ -78,8 +80,10 @@ def measure(problem: oo.Problem, noise: float, views: int, seed: int) -> dict[st
     camera = DepthCamera(problem, camera_of_scene(problem))
     truth = problem.object.pose[:3]
     errors, inside2, inside3, us, residuals, diameters = [], [], [], [], [], []
+    times = []
     refused: Counter[str] = Counter()
     for i in range(views):
+        start = time.perf_counter()
         try:
             seen = perceive(
                 problem,
@@ -90,6 +94,7 @@ def measure(problem: oo.Problem, noise: float, views: int, seed: int) -> dict[st
         except PerceptionError as refusal:
             refused[type(refusal).__name__] += 1
             continue
+        times.append(time.perf_counter() - start)
         error = seen.fit.superquadric.position - truth
         covariance = seen.fit.position_covariance
         errors.append(error)
@@ -110,6 +115,7 @@ def measure(problem: oo.Problem, noise: float, views: int, seed: int) -> dict[st
         "residual_mm": float(np.mean(residuals) * 1e3) if residuals else float("nan"),
         "diameter_mm": float(np.mean(diameters) * 1e3) if diameters else float("nan"),
         "refused": dict(refused),
+        "ms_per_view": float(np.median(times) * 1e3) if times else float("nan"),
     }
 
 
@@ -130,9 +136,9 @@ def main(argv: list[str] | None = None) -> int:
     print(
         "| object | noise | views (fitted) | inside 2σ, x-y | inside 2σ, 3-D |"
         " mean error x, y, z [mm] | sd x, y, z [mm] | mean u | mean residual [mm] |"
-        " diameter [mm] | refused |"
+        " diameter [mm] | refused | median ms per view |"
     )
-    print("|:--|--:|--:|--:|--:|:--|:--|--:|--:|--:|:--|")
+    print("|:--|--:|--:|--:|--:|:--|:--|--:|--:|--:|:--|--:|")
     for name in args.objects:
         problem = scene_of(name)
         for noise in args.noise if name == "can" else [1.0]:
@@ -146,7 +152,7 @@ def main(argv: list[str] | None = None) -> int:
                 f"| {name} | {noise:g} | {row['views']} ({row['fitted']}) |"
                 f" {row['inside_2d']:.0%} | {row['inside_3d']:.0%} | {shown(row['mean_mm'])} |"
                 f" {shown(row['sd_mm'])} | {row['mean_u']:.3f} | {row['residual_mm']:.2f} |"
-                f" {row['diameter_mm']:.1f} | {refused} |",
+                f" {row['diameter_mm']:.1f} | {refused} | {row['ms_per_view']:.1f} |",
                 flush=True,
             )
     return 0

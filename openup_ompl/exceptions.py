@@ -247,6 +247,30 @@ class ObjectCutOff(PerceptionError):
         )
 
 
+class ObjectOccluded(PerceptionError):
+    """The object's outline is hidden behind a nearer surface on a side nothing else
+    bounds: its extent there is unknown, and the fit ends it where the view does (an
+    audit: the Panda's can seen over its scene's wall from 50 degrees, the fit a disc of
+    its visible top 45 mm too high, with a 0.7 mm sigma). The bottom is bounded when the
+    object stands on a surface the rays find (:meth:`~openup_ompl.perception.camera.
+    DepthCamera.support_under`).
+
+    Attributes:
+        pixels: The object's outline pixels next to the occluder on those sides.
+        sides: The image sides hidden (``"top"``, ``"bottom"``, ``"left"``, ``"right"``).
+    """
+
+    def __init__(self, pixels: int, sides: Sequence[str]) -> None:
+        self.pixels = pixels
+        self.sides = list(sides)
+        super().__init__(
+            f"the object is hidden behind a nearer surface on its {' and '.join(self.sides)}"
+            f" side{'s' if len(self.sides) > 1 else ''} ({pixels} outline pixels): the view"
+            " does not bound it there: expected a view that sees its outline (another"
+            " elevation or azimuth)"
+        )
+
+
 class TooFewPoints(PerceptionError):
     """The object's point cloud has fewer points than the fit has parameters.
 

@@ -25,6 +25,7 @@ from openup_ompl.exceptions import (
     InvalidProblem,
     ObjectCutOff,
     ObjectNotVisible,
+    ObjectOccluded,
     TooFewPoints,
 )
 from openup_ompl.perception.camera import (
@@ -48,6 +49,7 @@ __all__ = [
     "Perception",
     "at_estimate",
     "estimated_pose",
+    "occluded_outline",
     "perceive",
     "perceived_toml",
     "silhouette_of",
@@ -102,19 +104,63 @@ def silhouette_of(
     """The view's free space: the object's pixels, pixels without a measurement (dropped
     or no hit: unknown) and pixels whose hit lies in front of the object are allowed;
     nothing below the ``support``'s height [m] (:meth:`DepthCamera.support_under`)."""
-    valid = view.hit & (view.incidence <= math.radians(noise.max_incidence))
-    on_object = view.on_object & valid
+    valid = _valid(view, noise)
     shape = (view.height, view.width)
-    front = np.nanmin(view.depth[on_object]) if on_object.any() else np.inf
-    occluder = valid & ~view.on_object & (view.depth < front)
     return Silhouette.from_view(
-        on_object.reshape(shape),
-        (occluder | ~valid).reshape(shape),
+        (view.on_object & valid).reshape(shape),
+        (_occluder(view, noise) | ~valid).reshape(shape),
         view.position,
         view.rotation,
         camera.intrinsics(),
         support=support,
     )
+
+
+def _valid(view: DepthView, noise: NoiseOptions) -> np.ndarray:
+    """The pixels measured (a hit, not at grazing incidence)."""
+    return np.asarray(view.hit & (view.incidence <= math.radians(noise.max_incidence)))
+
+
+def _occluder(view: DepthView, noise: NoiseOptions) -> np.ndarray:
+    """The measured pixels off the object nearer than its nearest point: what may hide
+    part of it."""
+    valid = _valid(view, noise)
+    on_object = view.on_object & valid
+    front = np.nanmin(view.depth[on_object]) if on_object.any() else np.inf
+    return np.asarray(valid & ~view.on_object & (view.depth < front))
+
+
+#: Image sides and the step (row, column) to the pixel beyond each.
+_SIDES = {"top": (-1, 0), "bottom": (1, 0), "left": (0, -1), "right": (0, 1)}
+
+
+def occluded_outline(view: DepthView, noise: NoiseOptions) -> dict[str, tuple[int, int]]:
+    """Per image side, the object's outline pixels on it whose next pixel beyond is an
+    occluder (a measured surface nearer than the object's nearest point), and all its
+    outline pixels on it: ``{side: (hidden, outline)}``. The table in front of a standing
+    object's base lies behind its nearest point and hides nothing."""
+    shape = (view.height, view.width)
+    on_object = view.on_object.reshape(shape)
+    occluder = _occluder(view, noise).reshape(shape)
+    counts = {}
+    for side, (dr, dc) in _SIDES.items():
+        # beyond[r, c]: the pixel (r + dr, c + dc), False off the image.
+        inside = np.zeros(shape, dtype=bool)
+        hidden = np.zeros(shape, dtype=bool)
+        rows = slice(max(-dr, 0), shape[0] - max(dr, 0))
+        cols = slice(max(-dc, 0), shape[1] - max(dc, 0))
+        beyond_rows = slice(max(dr, 0), shape[0] + min(dr, 0))
+        beyond_cols = slice(max(dc, 0), shape[1] + min(dc, 0))
+        inside[rows, cols] = on_object[beyond_rows, beyond_cols]
+        hidden[rows, cols] = occluder[beyond_rows, beyond_cols]
+        outline = on_object & ~inside
+        counts[side] = (int(np.count_nonzero(outline & hidden)), int(np.count_nonzero(outline)))
+    return counts
+
+
+#: An image side is hidden when more than this share of the object's outline on it lies
+#: next to an occluder (:func:`occluded_outline`).
+HIDDEN_SHARE = 0.5
 
 
 #: A fitted half-size within this factor of ``FitOptions.min_size`` is a collapsed fit
@@ -165,6 +211,10 @@ def perceive(
         TooFewPoints: Too few for the fit.
         ObjectCutOff: The object's pixels reach the image border (the view does not
             bound it).
+        ObjectOccluded: More than :data:`HIDDEN_SHARE` of the object's outline on one
+            image side lies next to a nearer surface (:func:`occluded_outline`), and
+            nothing else bounds it there (the bottom of an object standing on a surface
+            the rays find does not count).
         DegenerateFit: The fit collapsed onto one face (a half-size within
             :data:`DEGENERATE_FACTOR` of its lower bound).
     """
@@ -207,9 +257,15 @@ def perceive(
         edge = on_object.copy()
         edge[1:-1, 1:-1] = False
         raise ObjectCutOff(int(edge.sum()), sides)
-    shape = None
-    if silhouette:
-        shape = silhouette_of(view, noise, cam.options, cam.support_under(cloud.points, view))
+    support = cam.support_under(cloud.points, view) if silhouette else None
+    hidden = {
+        side: count
+        for side, (count, outline) in occluded_outline(view, noise).items()
+        if count > HIDDEN_SHARE * outline and not (side == "bottom" and support is not None)
+    }
+    if hidden:
+        raise ObjectOccluded(sum(hidden.values()), list(hidden))
+    shape = silhouette_of(view, noise, cam.options, support) if silhouette else None
     weights = normal_sigma(cam.position, cam.rotation, noise) if weighted else None
     result = fit_superquadric(cloud.points, fit, shape, weights)
     bound = (fit or FitOptions()).min_size

@@ -32,6 +32,17 @@ re-linearised about the fitted orientation, so the rotation block is in the fitt
 :class:`FitOptions`). Directions of ``J^T J`` with no information (a cylinder's yaw about
 its axis, the sizes of an unseen side...) are given by a pseudo-inverse and listed in
 ``unobservable``.
+
+``J`` holds the points' rows and the support's (an equality: the object stands on it), not
+the free space's (:class:`Silhouette`): those are an inequality, zero inside the one-pixel
+band and a penalty beyond it, that bounds the estimate without measuring it. Counted as
+measurements with the points' variance, the few samples a fit pushes past the band (those
+fits that grew away from the camera, or squared off a round section) made their
+covariance millimetres where the error was centimetres (LWA3 can at noise 4: 50 % inside
+the 2-sigma ellipse with them, 68 % without; box 74 and 88 %; thin stick 61 and 87 %).
+Without them the covariance is that of the points and the support alone, which bounds the
+bounded estimate's: conservative where only the outline fixes a side (the box's face seen
+too obliquely to measure: its lateral sigma 2.2 mm, median, for an error of 1.0 mm sd).
 """
 
 from __future__ import annotations
@@ -566,7 +577,11 @@ def fit_superquadric(
     jacobian = _jacobian(x, *args)
     n = points.shape[0]
     variance = float(residuals[:n] @ residuals[:n] / (n - N_PARAMETERS))
-    covariance, unobservable = _covariance(jacobian, residuals, variance, options.covariance)
+    # The points and the support measure; the free space only bounds (module docstring).
+    rows = np.r_[0:n, n + _free_space_rows(silhouette) : residuals.shape[0]]
+    covariance, unobservable = _covariance(
+        jacobian[rows], residuals[rows], variance, options.covariance
+    )
     unweighted = residuals[:n] / weights if weights is not None else residuals[:n]
     return SuperquadricFit(
         superquadric=superquadric,
@@ -577,6 +592,12 @@ def fit_superquadric(
         evaluations=evaluations,
         unobservable=unobservable,
     )
+
+
+def _free_space_rows(silhouette: Silhouette | None) -> int:
+    """How many residuals after the points are the free space's (:meth:`Silhouette.excess`
+    of each surface sample)."""
+    return 0 if silhouette is None else int(silhouette.samples.shape[0])
 
 
 def _covariance(
