@@ -19,7 +19,7 @@ from openup_ompl import _toml
 from openup_ompl._model import frame_id
 from openup_ompl._resources import erd_share_dir
 from openup_ompl.exceptions import ConfigError, FrameNotFound, JointNotFound
-from openup_ompl.hand_law import HandLaw
+from openup_ompl.hand_law import REFERENCE_TOLERANCE, HandLaw
 from openup_ompl.robot_file import (
     MimicSpec,
     MountSpec,
@@ -120,7 +120,111 @@ class Robot:
             dtype=np.intp,
         )
         self.palm_frame_id = frame_id(self.model, self.spec.palm_frame)
-        self.check_arm(self.spec.home, "home")
+        self._check_palm_frame()
+        self._check_held_joints()
+        self.check_arm(self.spec.home, f"{self.spec.path.name}: home")
+        self._check_hand_references()
+
+    def _palm_chain(self) -> list[str]:
+        """The joints that move the palm frame, from the palm towards the root."""
+        chain = []
+        joint = self.model.frames[self.palm_frame_id].parentJoint
+        while joint != 0:
+            chain.append(self.model.names[joint])
+            joint = self.model.parents[joint]
+        return chain
+
+    def _check_palm_frame(self) -> None:
+        """The palm frame must be moved by an arm joint and by no hand joint: IK and the
+        law's palm distance place it with the arm alone, the rest of ``q`` neutral (a
+        palm the arm does not move made every grasp "out of reach after 200 IK
+        restarts")."""
+        chain = self._palm_chain()
+        where = f"{self.spec.path.name}: palm_frame"
+        if not set(chain) & set(self.spec.arm_joints):
+            moved_by = f"moved only by {chain}" if chain else "fixed to the world"
+            raise ConfigError(
+                where,
+                self.spec.palm_frame,
+                f"a frame moved by at least one of arm_joints (this one is {moved_by})",
+            )
+        by_hand = [name for name in chain if name in self.hand_joints]
+        if by_hand:
+            raise ConfigError(
+                where,
+                self.spec.palm_frame,
+                f"a frame no hand joint moves (this one is moved by {by_hand[0]})",
+            )
+
+    def _check_held_joints(self) -> None:
+        """A joint in neither ``arm_joints`` nor ``hand_joints`` (nor a mimic follower) is
+        held at its neutral value: refuse it when that lies outside its limits (every plan
+        would then be refused by ``show`` and ``execute``). The message gives the remedy:
+        ``arm_joints`` for a joint that moves the palm, else ``hand_joints`` or a
+        ``[mimic]`` entry of multiplier 0 holding it at its offset."""
+        listed = {*self.spec.arm_joints, *self.hand_joints}
+        neutral = pin.neutral(self.model)
+        low, high = self.model.lowerPositionLimit, self.model.upperPositionLimit
+        for j in range(1, self.model.njoints):
+            name, joint = self.model.names[j], self.model.joints[j]
+            if name in listed or joint.nq != 1:
+                continue
+            i = joint.idx_q
+            if low[i] - LIMIT_TOLERANCE <= neutral[i] <= high[i] + LIMIT_TOLERANCE:
+                continue
+            if name in self._palm_chain():
+                remedy = "list it in arm_joints (it moves the palm frame)"
+            else:
+                remedy = (
+                    f'list it in hand_joints, or hold it with a [mimic] entry "{name}" ='
+                    f' {{ joint = "{self.spec.hand_joints[0]}", multiplier = 0.0,'
+                    f" offset = <a value in [{low[i]:.6g}, {high[i]:.6g}]> }}"
+                )
+            raise ConfigError(
+                f"{self.spec.path.name}: joint {name}",
+                float(neutral[i]),
+                f"a value within its limits [{low[i]:.6g}, {high[i]:.6g}] for a joint in"
+                f" neither arm_joints nor hand_joints, held at {neutral[i]:g}: {remedy}",
+            )
+
+    def _check_hand_references(self) -> None:
+        """The robot file's ``c``, ``b``, ``w`` and ``closed`` within the hand joints'
+        limits: checked here, where the limits are known, so that the message names the
+        robot file and the joints at fault rather than a scene that did not set them."""
+        where = f"{self.spec.path.name}: hand"
+        for key in ("c", "b", "w"):
+            self.check_hand(getattr(self.spec, key), f"{where}.{key}")
+        if self.spec.closed is not None:
+            self.check_hand(self.spec.closed, f"{where}.closed", followers=False)
+
+    def check_hand(self, driven: np.ndarray, what: str, *, followers: bool = True) -> None:
+        """Check driven hand values against the joints' limits (to
+        :data:`~openup_ompl.hand_law.REFERENCE_TOLERANCE`), and, if ``followers``, the mimic
+        followers they set.
+
+        Raises:
+            ConfigError: Naming ``what``, the driven values and every joint outside its
+                limits (a follower with its mimic relation).
+        """
+        n = self.n_driven
+        values = self.expand_hand(driven) if followers else np.asarray(driven, dtype=float)
+        low = self.model.lowerPositionLimit[self.hand_idx][: values.size]
+        high = self.model.upperPositionLimit[self.hand_idx][: values.size]
+        outside = (values < low - REFERENCE_TOLERANCE) | (values > high + REFERENCE_TOLERANCE)
+        faults = []
+        for k in np.flatnonzero(outside):
+            joint = self.hand_joints[k]
+            if k >= n:
+                m = self.mimic[k - n]
+                source = "[mimic]" if m in self.spec.mimic else "the URDF's <mimic>"
+                joint += f" (set by {source} to {m.multiplier:g} * {m.leader} + {m.offset:g})"
+            faults.append(f"{joint} = {values[k]:.6g} outside [{low[k]:.6g}, {high[k]:.6g}]")
+        if faults:
+            raise ConfigError(
+                what,
+                np.asarray(driven, dtype=float).tolist(),
+                f"values within the hand joints' limits ({'; '.join(faults)})",
+            )
 
     @property
     def n_driven(self) -> int:
@@ -246,6 +350,7 @@ class Robot:
                     numbers = np.asarray(value, dtype=float)
                 except (TypeError, ValueError):
                     raise ConfigError(f"{where}.{key}", value, "a list of numbers") from None
+                self.check_hand(numbers, f"{where}.{key}")
                 changes[key] = self.expand_hand(numbers)
             elif size != self.hand_idx.size:
                 raise ConfigError(
@@ -327,7 +432,7 @@ def load_robot(name_or_path: str | Path = "panda") -> Robot:
         )
         collision.removeAllCollisionPairs()
         if spec.convex:
-            _convex_hulls(collision)
+            _convex_hulls(model, collision, spec.path.name)
         collision.addAllCollisionPairs()
         frames = {f.name for f in model.frames}
         for pair in mount.disable_collisions:
@@ -340,7 +445,7 @@ def load_robot(name_or_path: str | Path = "panda") -> Robot:
         remove_srdf_pairs(model, collision, srdf, f"{spec.path.name}: merged srdf")
     else:
         if spec.convex:
-            _convex_hulls(collision)
+            _convex_hulls(model, collision, spec.path.name)
         collision.addAllCollisionPairs()
         if spec.srdf is not None:
             remove_srdf_pairs(model, collision, spec.srdf, f"{spec.path.name}: srdf")

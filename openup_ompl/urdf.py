@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import math
 import os
 import sys
 import tempfile
@@ -16,6 +17,7 @@ from pathlib import Path
 from typing import TypeVar
 
 import coal
+import numpy as np
 import pinocchio as pin
 
 from openup_ompl._io import write_atomic
@@ -24,6 +26,20 @@ from openup_ompl.exceptions import ConfigError
 from openup_ompl.robot_file import MimicSpec, MountSpec, RobotSpec
 
 T = TypeVar("T")
+
+#: Thinnest spread of a mesh's vertices, as a fraction of their widest, that is hulled
+#: (:func:`_check_hull_points`; singular values of the centred vertices): Coal's
+#: ``buildConvexHull`` crashed on 20 random points 3e-8 of their width thick, and hulled
+#: them at 1e-7.
+FLAT_TOLERANCE = 1e-6
+
+#: Size attributes of the URDF collision primitives: each must be positive and finite.
+_PRIMITIVE_SIZES = {
+    "box": ("size",),
+    "cylinder": ("radius", "length"),
+    "sphere": ("radius",),
+    "capsule": ("radius", "length"),
+}
 
 
 def cache_dir() -> Path:
@@ -57,6 +73,63 @@ def urdf_tree(path: Path, where: str, kind: str = "URDF") -> ET.Element:
             where, str(path), f"{kind} XML with a <robot> root element, not <{root.tag}>"
         )
     return root
+
+
+def check_urdf_values(root: ET.Element, urdf: Path, where: str) -> None:
+    """Refuse values urdfdom accepts but that make the model silently wrong: a revolute
+    or prismatic joint whose ``<limit>`` has ``lower > upper`` (no configuration is within
+    it), a collision primitive of a size that is not positive and finite (Coal builds it,
+    and it never collides), and a collision mesh scale of zero or not finite (negative
+    factors mirror the mesh, as example-robot-data's TIAGo does, and are kept).
+
+    Args:
+        root: The URDF's ``<robot>`` element.
+        urdf: Its file, named in the message.
+        where: The robot file and key that named it (e.g. ``"robot.toml: urdf"``).
+
+    Raises:
+        ConfigError: Naming the URDF file, the joint or link, and the bad value.
+    """
+    for joint in root.findall("joint"):
+        limit = joint.find("limit")
+        if joint.get("type") not in ("revolute", "prismatic") or limit is None:
+            continue
+        lower, upper = (_number(limit.get(key, "0")) for key in ("lower", "upper"))
+        if lower > upper:
+            raise ConfigError(
+                f"{where} {urdf}: joint {joint.get('name')} <limit>",
+                {"lower": lower, "upper": upper},
+                "lower <= upper",
+            )
+    for link in root.findall("link"):
+        for shape in link.findall("collision/geometry/*"):
+            keys = ("scale",) if shape.tag == "mesh" else _PRIMITIVE_SIZES.get(shape.tag, ())
+            for key in keys:
+                text = shape.get(key)
+                if text is None:
+                    continue
+                values = [_number(word) for word in text.split()]
+                finite = bool(values) and all(math.isfinite(x) for x in values)
+                if shape.tag == "mesh":
+                    ok = finite and all(x != 0 for x in values)
+                    expected = "non-zero finite scale factors"
+                else:
+                    ok = finite and all(x > 0 for x in values)
+                    expected = "a positive finite size [m]"
+                if not ok:
+                    raise ConfigError(
+                        f"{where} {urdf}: link {link.get('name')}: <collision> <{shape.tag} {key}>",
+                        values[0] if len(values) == 1 else (values or text),
+                        expected,
+                    )
+
+
+def _number(text: str) -> float:
+    """A number of a URDF attribute, NaN if it is not one (urdfdom refuses it later)."""
+    try:
+        return float(text)
+    except ValueError:
+        return math.nan
 
 
 def urdf_mimic(root: ET.Element) -> tuple[MimicSpec, ...]:
@@ -146,6 +219,7 @@ def _merged_urdf(
     """
     where = f"{spec.path.name}: mount"
     hand = urdf_tree(mount.urdf, f"{where}.urdf")
+    check_urdf_values(hand, mount.urdf, f"{where}.urdf")
     _prefix_names(hand, mount.prefix)
     hand_urdf, hand_srdf = mount.urdf, mount.srdf
     if mount.prefix:
@@ -205,6 +279,7 @@ def _build(
     so that a file that is not URDF XML is one :class:`ConfigError` (see
     :func:`urdf_tree`)."""
     root = urdf_tree(urdf, where)
+    check_urdf_values(root, urdf, where)
 
     def build() -> tuple[pin.Model, pin.GeometryModel]:
         model = pin.buildModelFromUrdf(str(urdf))
@@ -265,13 +340,43 @@ def _native_stderr() -> Iterator[list[str]]:
             lines.extend(sink.read().decode(errors="replace").splitlines())
 
 
-def _convex_hulls(geometry_model: pin.GeometryModel) -> None:
-    """Replace every mesh by its convex hull (qhull): conservative, about 2x faster."""
+def _convex_hulls(model: pin.Model, geometry_model: pin.GeometryModel, where: str) -> None:
+    """Replace every mesh by its convex hull (qhull): conservative, about 2x faster.
+
+    Raises:
+        ConfigError: A mesh with no solid hull (:func:`_check_hull_points`), named with
+            its link at ``where`` (the robot file).
+    """
     for geometry in geometry_model.geometryObjects:
         shape = geometry.geometry
         if isinstance(shape, coal.BVHModelBase):
+            _check_hull_points(
+                shape.vertices(), model.frames[geometry.parentFrame].name, geometry.meshPath, where
+            )
             shape.buildConvexHull(True, "Qt")
             geometry.geometry = shape.convex
+
+
+def _check_hull_points(points: np.ndarray, link: str, mesh: str, where: str) -> None:
+    """Refuse mesh vertices whose convex hull is no solid: fewer than 4 points, or all of
+    them in one plane (or on one line) up to :data:`FLAT_TOLERANCE` of their spread. Coal
+    raises a bare ``ValueError`` for the first and crashes the process (SIGSEGV, in qhull's
+    error path) on the second.
+    """
+    points = np.asarray(points, dtype=float).reshape(-1, 3)
+    if len(points) < 4:
+        shown: object = f"{len(points)} vertices"
+    else:
+        spread = np.linalg.svd(points - points.mean(axis=0), compute_uv=False)
+        if spread[-1] > FLAT_TOLERANCE * spread[0]:
+            return
+        shown = f"{len(points)} vertices in one plane"
+    raise ConfigError(
+        f"{where}: link {link}: collision mesh {mesh}",
+        shown,
+        "at least 4 vertices not all in one plane, to replace the mesh by its convex hull"
+        f" (or set convex = false in {where} to collide with the mesh itself)",
+    )
 
 
 def remove_srdf_pairs(

@@ -127,19 +127,33 @@ mga = 0.25
 {mimic}"""
 
 
+#: The Allegro's thumb base, which the composite robot does not drive: held inside its
+#: limits [0.263, 1.396] by a [mimic] row that ignores its leader.
+HOLD_THUMB_BASE = '"joint_12.0" = { joint = "joint_0.0", multiplier = 0.0, offset = 0.3 }\n'
+
+
 def test_mimic_table_expands_law(write_file: Callable[[str, str], Path]) -> None:
     """[mimic] followers join hand_idx after the driven joints and follow their leader."""
     mimic = (
         '[mimic]\n"joint_5.0" = { joint = "joint_1.0", multiplier = 0.5, offset = 0.1 }\n'
-        '"joint_9.0" = { joint = "joint_1.0" }\n'
+        '"joint_9.0" = { joint = "joint_1.0" }\n' + HOLD_THUMB_BASE
     )
     robot = oo.load_robot(write_file("r.toml", _composite(mimic=mimic)))
-    assert robot.hand_joints == ("joint_0.0", "joint_1.0", "joint_5.0", "joint_9.0")
+    assert robot.hand_joints == ("joint_0.0", "joint_1.0", "joint_5.0", "joint_9.0", "joint_12.0")
     law = robot.hand_law()
-    assert law.c.tolist() == pytest.approx([0.0, 0.1, 0.15, 0.1])
-    assert law.w.tolist() == pytest.approx([0.0, 0.3, 0.25, 0.3])
+    assert law.c.tolist() == pytest.approx([0.0, 0.1, 0.15, 0.1, 0.3])
+    assert law.w.tolist() == pytest.approx([0.0, 0.3, 0.25, 0.3, 0.3])
     q = robot.full_q(robot.spec.home, [0.0, 0.4])
-    assert q[robot.hand_idx].tolist() == pytest.approx([0.0, 0.4, 0.3, 0.4])
+    assert q[robot.hand_idx].tolist() == pytest.approx([0.0, 0.4, 0.3, 0.4, 0.3])
+
+
+def test_a_joint_held_outside_its_limits_is_refused(
+    write_file: Callable[[str, str], Path],
+) -> None:
+    """The Allegro's thumb base (limits [0.263, 1.396]) left out of the hand joints was
+    held at 0, outside its limits, and every plan then refused by show and execute."""
+    with pytest.raises(ConfigError, match=re.escape("joint_12.0")):
+        oo.load_robot(write_file("r.toml", _composite()))
 
 
 def test_mount_prefix_renames_hand(write_file: Callable[[str, str], Path]) -> None:
@@ -147,7 +161,10 @@ def test_mount_prefix_renames_hand(write_file: Callable[[str, str], Path]) -> No
     text = _composite(hand_joints='["h_joint_0.0", "h_joint_1.0"]').replace(
         'palm_frame = "palm_link"', 'palm_frame = "h_palm_link"'
     )
-    text = text.replace("[hand]", 'prefix = "h_"\n[hand]')
+    text = text.replace("[hand]", 'prefix = "h_"\n[hand]') + HOLD_THUMB_BASE.replace(
+        "joint_", "h_joint_"
+    ).replace("[mimic]", "")
+    text = text.replace("mga = 0.25\n", "mga = 0.25\n[mimic]\n")
     robot = oo.load_robot(write_file("r.toml", text))
     assert robot.joint_names[6:8] == ["h_joint_0.0", "h_joint_1.0"]
     model = pin.buildModelFromUrdf(str(robot.urdf))
