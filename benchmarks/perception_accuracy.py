@@ -16,6 +16,7 @@ and the Panda scene's can from its own camera (elevation 60).
 
     python benchmarks/perception_accuracy.py                      # about 4 min on 1 core
     python benchmarks/perception_accuracy.py --objects can --noise 1 --views 200
+    python benchmarks/perception_accuracy.py --json perception_accuracy.json
 """
 
 from __future__ import annotations
@@ -131,8 +132,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--noise", type=float, nargs="+", default=[0.5, 1.0, 2.0, 4.0])
     parser.add_argument("--views", type=int, default=100, help="views per row (default 100)")
     parser.add_argument("--seed", type=int, default=2026, help="seed of view 0")
+    parser.add_argument("--json", default=None, help="write the rows to this JSON file")
     args = parser.parse_args(argv)
-    print(_common.machine_line(_common.machine_info()))
+    machine = _common.machine_info()
+    print(_common.machine_line(machine))
+    rows = []
     print(
         "| object | noise | views (fitted) | inside 2σ, x-y | inside 2σ, 3-D |"
         " mean error x, y, z [mm] | sd x, y, z [mm] | mean u | mean residual [mm] |"
@@ -143,6 +147,7 @@ def main(argv: list[str] | None = None) -> int:
         problem = scene_of(name)
         for noise in args.noise if name == "can" else [1.0]:
             row = measure(problem, noise, args.views, args.seed)
+            rows.append({"object": name, "noise": noise, **row})
 
             def shown(values: list[float]) -> str:
                 return ", ".join(f"{v:.1f}" for v in values)
@@ -155,6 +160,7 @@ def main(argv: list[str] | None = None) -> int:
                 f" {row['diameter_mm']:.1f} | {refused} | {row['ms_per_view']:.1f} |",
                 flush=True,
             )
+    _common.write_json(args.json, {"machine": machine, "views": args.views, "rows": rows})
     return 0
 
 

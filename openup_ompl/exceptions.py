@@ -127,7 +127,8 @@ class PlanningFailed(OpenUpError):
     """The planner ended without an exact solution.
 
     Attributes:
-        status: OMPL's planner status, as text (e.g. ``"Timeout"``).
+        status: OMPL's planner status, as text in lower case with spaces (e.g.
+            ``"timeout"``, ``"approximate solution"``).
         planner: The planner's name.
         time_limit: The time limit it was given [s].
     """

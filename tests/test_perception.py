@@ -542,6 +542,20 @@ def test_an_object_whose_outline_is_hidden_is_refused(lwa3_can):
     assert refused.value.sides == ["left"] and refused.value.pixels > 0
 
 
+def test_the_closed_loop_defaults_are_the_commands():
+    """``ClosedLoopOptions()`` sweeps what ``openup-ompl closed-loop`` sweeps (its noises
+    were 0.5, 1, 2 against the command's 1, 2, 4, the README tables')."""
+    from openup_ompl.__main__ import build_parser
+    from openup_ompl.perception.closed_loop import ClosedLoopOptions
+
+    args = build_parser().parse_args(["closed-loop", "--out", "x"])
+    options = ClosedLoopOptions()
+    assert tuple(args.noise) == options.noises
+    assert tuple(args.distance) == options.distances
+    assert tuple(args.policies) == options.policies
+    assert args.trials == options.trials
+
+
 def test_an_interrupted_closed_loop_writes_the_views_that_ended(tmp_path):
     """Ctrl-C during ``closed-loop`` (minutes long in physics) writes the table of the
     views that ended, for every policy, and exits 130 in one line, no traceback."""

@@ -93,7 +93,7 @@ class ClosedLoopOptions:
     """
 
     policies: tuple[str, ...] = ("0", "0.3", "1", "covariance")
-    noises: tuple[float, ...] = (0.5, 1.0, 2.0)
+    noises: tuple[float, ...] = (1.0, 2.0, 4.0)  # as `openup-ompl closed-loop`
     distances: tuple[float, ...] = (0.6, 1.0)  # [m]
     trials: int = 10
     first_seed: int = 1
