@@ -62,22 +62,15 @@ def _count(text: str) -> int:
 
 
 def _scheduler(text: str) -> str:
-    """A Dask scheduler address, ``[scheme://]host[:port]``, checked with Dask's own parser
-    (when Dask is installed: without it the run says the extra is missing)."""
+    """A Dask scheduler address, ``[scheme://]host:port``, checked with Dask's own parser
+    (``executor.check_scheduler``; when Dask is installed: without it the run says the
+    extra is missing)."""
+    from openup_ompl.executor import check_scheduler
+
     try:
-        from distributed.comm.addressing import parse_address, parse_host_port
-    except ImportError:
-        return text
-    expected = f"a Dask scheduler address such as tcp://host:8786, got {text!r}"
-    try:
-        scheme, location = parse_address(text)
-        if scheme in ("tcp", "tls"):
-            host, port = parse_host_port(location, 8786)
-            if not host or not 0 < port < 2**16:
-                raise ValueError(location)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected {expected}") from None
-    return text
+        return check_scheduler(text)
+    except ConfigError as error:
+        raise argparse.ArgumentTypeError(f"expected {error.expected}, got {text!r}") from None
 
 
 def _planner(text: str) -> str:
@@ -647,6 +640,8 @@ def _law_command(args: argparse.Namespace) -> int:
     from openup_ompl.viz._scene import prismatic_joints
     from openup_ompl.viz.law import figure_path, plot_law
 
+    if len(set(args.u)) != len(args.u):  # as robustness refuses them (RobustnessOptions)
+        raise ConfigError("u", list(args.u), "distinct values")
     _file_out(args.out)
     out = None if args.out is None else figure_path(args.out, "--out")
     if args.scene is not None:

@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from openup_ompl._io import read_bytes
 from openup_ompl.exceptions import ConfigError
 
 if sys.version_info >= (3, 11):
@@ -20,10 +21,11 @@ else:  # pragma: no cover - Python 3.10
 
 
 def read_toml(path: Path, what: str) -> dict[str, Any]:
-    """Parse a TOML file, turning syntax and I/O errors into :class:`ConfigError`."""
+    """Parse a TOML file, turning syntax and I/O errors into :class:`ConfigError`; a file
+    that is not a regular one, or larger than :data:`~openup_ompl._io.MAX_FILE_BYTES`, is
+    refused unread (:func:`~openup_ompl._io.read_bytes`)."""
     try:
-        with open(path, "rb") as stream:
-            return tomllib.load(stream)
+        return tomllib.loads(read_bytes(path, what).decode("utf-8"))
     except FileNotFoundError:
         raise ConfigError(what, str(path), "an existing TOML file") from None
     except (OSError, UnicodeDecodeError, RecursionError, tomllib.TOMLDecodeError) as error:
@@ -156,6 +158,10 @@ def pose(value: Any, where: str) -> np.ndarray:
     if np.any(np.abs(array[:3]) > MAX_EXTENT):
         raise ConfigError(
             where, value, f"[x, y, z, qx, qy, qz, qw] with |x|, |y|, |z| <= {MAX_EXTENT:g} m"
+        )
+    if np.any(np.abs(array[3:]) > 1.0 + 1e-3):  # not unit; its norm may overflow
+        raise ConfigError(
+            where, value, "[x, y, z, qx, qy, qz, qw] with a unit quaternion (|qx|, ... <= 1)"
         )
     norm = float(np.linalg.norm(array[3:]))
     if abs(norm - 1.0) > 1e-3:

@@ -84,6 +84,39 @@ def check_seeds(first: int, count: int, most: int, where: str) -> None:
         )
 
 
+#: The example an error about a scheduler address gives.
+SCHEDULER_EXAMPLE = "a Dask scheduler address such as tcp://host:8786"
+
+
+def check_scheduler(address: str, where: str = "scheduler") -> str:
+    """``address`` if it is a Dask scheduler address, ``[scheme://]host:port`` (checked
+    with Dask's own parsers; without Dask installed, any non-empty string: the run then
+    says the extra is missing). Dask takes no default port (``bogus`` failed in its
+    connection code with ``missing port number``).
+
+    Raises:
+        ConfigError: Not such an address, naming ``where``, the address and why.
+    """
+    if not isinstance(address, str) or not address.strip():
+        raise ConfigError(where, address, SCHEDULER_EXAMPLE)
+    try:
+        from distributed.comm import registry
+        from distributed.comm.addressing import parse_address, parse_host_port
+    except ImportError:
+        return address
+    try:
+        scheme, location = parse_address(address)
+        if scheme not in registry.backends:
+            raise ValueError(f"unknown scheme {scheme!r}, not one of {sorted(registry.backends)}")
+        if scheme != "inproc":
+            host, port = parse_host_port(location)
+            if not host or not 0 < port < 2**16:
+                raise ValueError(f"expected a host and a port in [1, 65535] in {location!r}")
+    except ValueError as error:
+        raise ConfigError(where, address, f"{SCHEDULER_EXAMPLE} ({error})") from None
+    return address
+
+
 def seed_ompl(seed: int) -> None:
     """Seed OMPL's process-wide generator (before any OMPL object exists in the process).
 
@@ -233,10 +266,14 @@ def run_tasks(
             tenth of the runs otherwise).
 
     Raises:
-        ConfigError: Duplicate keys, ``workers`` below 1 or ``retries`` below 0.
+        ConfigError: Duplicate keys, ``workers`` below 1, ``retries`` below 0, or a
+            ``scheduler`` that is not an address (:func:`check_scheduler`) or that Dask's
+            client refuses.
         SweepFailed: Some task failed on every attempt (the others' shards are kept).
     """
     _check_keys(tasks)
+    if scheduler is not None:
+        check_scheduler(scheduler)
     if workers is not None and not (is_integer(workers) and workers >= 1):
         raise ConfigError("workers", workers, "an integer >= 1")
     if not (is_integer(retries) and retries >= 0):
@@ -304,7 +341,11 @@ def _run_dask(
     except ImportError as error:  # pragma: no cover - depends on the environment
         raise MissingExtra("dask[distributed]", "distributed") from error
     failures: dict[str, str] = {}
-    with Client(scheduler, timeout="30s") as client:
+    try:
+        client = Client(scheduler, timeout="30s")
+    except (ValueError, TypeError) as error:  # an address Dask's connection code refuses
+        raise ConfigError("scheduler", scheduler, f"{SCHEDULER_EXAMPLE} ({error})") from None
+    with client:
         futures = {
             client.submit(
                 run_task_process,

@@ -16,7 +16,7 @@ from openup_ompl import _toml
 from openup_ompl._io import read_json, write_atomic
 from openup_ompl._model import frame_id
 from openup_ompl.exceptions import ConfigError, FrameNotFound
-from openup_ompl.hand_law import HandLaw
+from openup_ompl.hand_law import HandLaw, palm_distance
 from openup_ompl.ik import MAX_POSITION_TOLERANCE, MAX_ROTATION_TOLERANCE
 from openup_ompl.scene import Problem, Shape, check_unique_names
 from openup_ompl.urdf import urdf_model
@@ -226,6 +226,87 @@ def _check_ends(
         )
 
 
+#: How far [rad or m] a path row's hand joint may be from the hand law's value there
+#: (rounding: the planner writes the law's value itself).
+HAND_TOLERANCE = 1e-6
+#: The least palm-to-grasp distance [m] at a plan's start: the planner refuses a start
+#: closer to its grasp (:data:`~openup_ompl.validity.MIN_START_DISTANCE`), and the law's
+#: normalised distance divides by it.
+MIN_START_PALM_DISTANCE = MAX_POSITION_TOLERANCE
+
+
+def _check_hand(
+    path: np.ndarray,
+    law: HandLaw,
+    start_distance: float | None,
+    model: pin.Model,
+    hand_idx: np.ndarray,
+    hand_joints: tuple[str, ...],
+    palm_frame_id: int,
+    grasp_pose: np.ndarray,
+    where: str,
+) -> None:
+    """Every row's hand joints must hold what the file's law gives for that row's arm
+    (as :meth:`~openup_ompl.planning.GraspPlanningSetup.densify` wrote them): a file whose
+    ``hand_joints`` are reordered, or whose hand columns were edited, would otherwise be
+    drawn and executed as a plan of that law.
+
+    ``d`` at a row is the palm's distance to ``grasp_pose`` (the law's kind of distance)
+    over ``start_distance`` (``None``: the palm's at ``path[0]``, the start). The last
+    row may be :data:`GRASP_POSITION_TOLERANCE` (and :data:`GRASP_ROTATION_TOLERANCE`)
+    from the grasp pose, so the grasp pose may be that far from the one the plan was made
+    for: a row's hand may be anything the law gives over the span of ``d`` that allows,
+    plus :data:`HAND_TOLERANCE`.
+    """
+    hands = path[:, hand_idx]
+    if law.fixed_clipped is not None:
+        low = high = np.broadcast_to(law.fixed_clipped, hands.shape)
+    else:
+        grasp = pin.XYZQUATToSE3(grasp_pose)
+        rotation_t = grasp.rotation.T if law.distance == "weighted" else None
+        slack = GRASP_POSITION_TOLERANCE
+        if rotation_t is not None:
+            slack += law.rotation_weight * GRASP_ROTATION_TOLERANCE
+        data = model.createData()
+        raw = np.empty(len(path))
+        for i, q in enumerate(path):
+            pin.forwardKinematics(model, data, q)
+            placement = pin.updateFramePlacement(model, data, palm_frame_id)
+            raw[i] = palm_distance(placement, grasp.translation, rotation_t, law.rotation_weight)
+        if start_distance is None:
+            start_distance = float(raw[0])
+            if start_distance < MIN_START_PALM_DISTANCE:
+                raise ConfigError(
+                    f"{where}path[0]",
+                    f"the palm {start_distance * 1e3:.3g} mm from grasp_pose",
+                    f"a start at least {MIN_START_PALM_DISTANCE * 1e3:g} mm from it (the"
+                    " hand law's distance is normalised by it)",
+                )
+        # The law is affine in d on each side of mga, then clipped: over [d0, d1] each
+        # joint's extremes lie at d0, d1 or mga.
+        d = raw / start_distance
+        d0 = np.maximum(d - slack / start_distance, 0.0)
+        d1 = d + slack / start_distance
+        ends = law.columns(np.concatenate([d0, d1, np.clip(law.mga, d0, d1)]))
+        ends = ends.T.reshape(3, len(path), -1)
+        low, high = ends.min(axis=0), ends.max(axis=0)
+    bad = np.argwhere((hands < low - HAND_TOLERANCE) | (hands > high + HAND_TOLERANCE))
+    if bad.size:
+        i, j = (int(k) for k in bad[0])
+        column = int(hand_idx[j])
+        span = (
+            f"{low[i, j]:.6g}"
+            if high[i, j] - low[i, j] <= HAND_TOLERANCE
+            else f"in [{low[i, j]:.6g}, {high[i, j]:.6g}]"
+        )
+        raise ConfigError(
+            f"{where}path[{i}][{column}]",
+            float(path[i, column]),
+            f"{hand_joints[j]} at {span}, as the file's hand_law gives for the row's arm"
+            " (robot.hand_joints in the law's order)",
+        )
+
+
 def _table(data: dict[str, Any], key: str, where: str, expected: str) -> dict[str, Any]:
     """``data[key]``, a table, or a ConfigError naming ``where + key``."""
     value = _key(data, key, where)
@@ -321,7 +402,9 @@ class PlanFile:
                 grasp pose, a path row of the wrong width, non-finite or beyond a joint
                 limit by more than :data:`LIMIT_TOLERANCE`, a path that does not leave
                 from ``start`` or does not end with the palm at ``grasp_pose``, within
-                :data:`GRASP_POSITION_TOLERANCE` and :data:`GRASP_ROTATION_TOLERANCE`),
+                :data:`GRASP_POSITION_TOLERANCE` and :data:`GRASP_ROTATION_TOLERANCE`,
+                a row whose hand is not the law's for its arm (:data:`HAND_TOLERANCE`),
+                a ``start_palm_distance`` under :data:`MIN_START_PALM_DISTANCE`),
                 located at ``where + key``.
         """
         if not isinstance(data, dict):
@@ -362,9 +445,12 @@ class PlanFile:
             f"{where}hand_law",
             ignore=("start_palm_distance",),
         )
+        start_distance = None
         if table.get("start_palm_distance") is not None:
-            _toml.number(
-                table["start_palm_distance"], f"{where}hand_law.start_palm_distance", low=0.0
+            start_distance = _toml.number(
+                table["start_palm_distance"],
+                f"{where}hand_law.start_palm_distance",
+                low=MIN_START_PALM_DISTANCE,
             )
         scene = _table(data, "scene", where, "a table with the object and obstacles")
         raw_obstacles = scene.get("obstacles") or []
@@ -396,6 +482,17 @@ class PlanFile:
             [model.joints[model.getJointId(n)].idx_q for n in groups["arm_joints"]], dtype=np.intp
         )
         _check_ends(path, start, arm_idx, model, palm_frame_id, grasp_pose, f"{where}")
+        _check_hand(
+            path,
+            law,
+            start_distance,
+            model,
+            hand_idx,
+            hand_joints,
+            palm_frame_id,
+            grasp_pose,
+            where,
+        )
         return cls(
             name=name,
             planner=data.get("planner", "plan"),

@@ -43,6 +43,15 @@ SUPPORT_GAP = 0.05
 GAP_DEPTH = 0.025
 
 
+#: The focal lengths accepted [px]. An explicit ``fx`` of 1e-300 px overflowed the rays'
+#: directions (numpy warnings on stderr); the field of view's own range, (0, 180) deg,
+#: gives 0.004 px (179 deg, 1 px wide) to millions.
+FOCAL_RANGE = (1e-3, 1e9)
+#: The farthest principal point accepted from the image's corner [px]: 25 times the widest
+#: image (1e308 px overflowed the rays as an ``fx`` of 1e-300 px did).
+PRINCIPAL_MAX = 1e5
+
+
 @dataclass(frozen=True)
 class CameraOptions:
     """Pose, intrinsics and resolution of the depth camera.
@@ -100,18 +109,41 @@ class CameraOptions:
                 raise ConfigError(f"camera.{name}", value, "a positive finite number")
         if not self.fov < 180:
             raise ConfigError("camera.fov", self.fov, "a field of view in (0, 180) deg")
+        low, high = FOCAL_RANGE
+        for name in ("fx", "fy"):
+            value = getattr(self, name)
+            if value is not None and not low <= value <= high:
+                raise ConfigError(
+                    f"camera.{name}", value, f"a focal length in [{low:g}, {high:g}] px"
+                )
+        if not self.distance <= _toml.MAX_EXTENT:
+            raise ConfigError(
+                "camera.distance", self.distance, f"a distance of at most {_toml.MAX_EXTENT:g} m"
+            )
         for name in ("cx", "cy", "azimuth"):
             value = getattr(self, name)
             if value is not None and not (_toml.is_finite(value)):
                 raise ConfigError(f"camera.{name}", value, "a finite number")
+        for name in ("cx", "cy"):
+            value = getattr(self, name)
+            if value is not None and not abs(value) <= PRINCIPAL_MAX:
+                raise ConfigError(
+                    f"camera.{name}", value, f"a principal point within {PRINCIPAL_MAX:g} px"
+                )
         if not (_toml.is_number(self.elevation) and -90 < self.elevation < 90):
             raise ConfigError("camera.elevation", self.elevation, "an angle in (-90, 90) deg")
         for name in ("position", "target"):
             value = getattr(self, name)
             if value is not None and not (
-                len(value) == 3 and all(_toml.is_finite(x) for x in value)
+                len(value) == 3
+                and all(_toml.is_finite(x) and abs(x) <= _toml.MAX_EXTENT for x in value)
             ):
-                raise ConfigError(f"camera.{name}", value, "[x, y, z], finite, in metres")
+                raise ConfigError(
+                    f"camera.{name}",
+                    value,
+                    f"[x, y, z], finite, in metres, each within {_toml.MAX_EXTENT:g} m of the"
+                    " origin",
+                )
 
     @classmethod
     def from_table(cls, table: Mapping[str, Any], where: str = "camera") -> CameraOptions:

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from openup_ompl import _toml
-from openup_ompl._io import json_safe, read_json, write_atomic
+from openup_ompl._io import json_safe, read_bytes, read_json, write_atomic
 from openup_ompl.exceptions import ConfigError
 from openup_ompl.plan import number_rows
 
@@ -126,10 +126,11 @@ def write_execution(record: ExecutionRecord, out_dir: str | Path) -> Path:
 def is_execution(path: str | Path) -> bool:
     """Whether ``path`` is a JSON object of the execution format's family (any version,
     any layout: for the command line to pick its reader, whose errors then name the
-    version it expects)."""
+    version it expects). A file :func:`~openup_ompl._io.read_bytes` refuses (a device,
+    one too large) is not one: the plan reader then says why."""
     try:
-        data = json.loads(Path(path).read_bytes())
-    except (OSError, ValueError, RecursionError):
+        data = json.loads(read_bytes(path, "execution file"))
+    except (OSError, ValueError, RecursionError):  # ConfigError is a ValueError
         return False
     family = EXECUTION_FORMAT.split("/")[0] + "/"
     return isinstance(data, dict) and str(data.get("format", "")).startswith(family)

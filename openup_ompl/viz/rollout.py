@@ -49,6 +49,10 @@ def _loaded(execution: dict[str, Any], where: str = "") -> tuple[PlanScene, dict
             f"{where}source", source, "the executed plan file's contents (kept with the frames)"
         )
     plan = PlanFile.from_dict(source, "execution", where=f"{where}source.")
+    if plan.object is None:  # the frames move an object: the storyboard draws it
+        raise ConfigError(
+            f"{where}source.scene.object", None, "the executed plan's object (a rollout moves one)"
+        )
     names = source["robot"]["joint_names"]
     if frames["joint_names"] != names:
         raise ConfigError(
@@ -68,7 +72,7 @@ def key_frames(execution: dict[str, Any]) -> list[tuple[int, str]]:
     first = execution.get("first_contact")
     if first and first["phase"] in ("settle", "reach"):
         k = min(len(phases) - 1, int(first["time_s"] / period))
-        d = "?" if first["d"] is None else f"{first['d']:.2f}"
+        d = "?" if first.get("d") is None else f"{first['d']:.2f}"
         keys.append((k, f"touch: {first['link']}\nd = {d}"))
     for phase, title in (
         ("reach", "end of reach"),
