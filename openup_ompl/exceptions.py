@@ -227,7 +227,23 @@ class ObjectNotVisible(PerceptionError):
         )
 
 
-class ObjectCutOff(PerceptionError):
+class _UnboundedView(PerceptionError):
+    """A view that does not bound the object on some image sides (``"top"``,
+    ``"bottom"``, ``"left"``, ``"right"``): :attr:`pixels` of its outline there."""
+
+    #: What the message calls a side, and its start and remedy.
+    noun = "side"
+    opening = ""
+    remedy = ""
+
+    def __init__(self, pixels: int, sides: Sequence[str]) -> None:
+        self.pixels = pixels
+        self.sides = list(sides)
+        named = f"{' and '.join(self.sides)} {self.noun}{'s' if len(self.sides) > 1 else ''}"
+        super().__init__(self.opening.format(pixels=pixels, sides=named) + self.remedy)
+
+
+class ObjectCutOff(_UnboundedView):
     """The object runs off the image: the view does not bound it, and the fit grew it
     past the border (an audit: 49 mm too high with a 0.9 mm sigma; a camera 0.12 m away,
     a half-length at the fit's 1 m bound).
@@ -237,18 +253,15 @@ class ObjectCutOff(PerceptionError):
         sides: The borders they lie on (``"top"``, ``"bottom"``, ``"left"``, ``"right"``).
     """
 
-    def __init__(self, pixels: int, sides: Sequence[str]) -> None:
-        self.pixels = pixels
-        self.sides = list(sides)
-        super().__init__(
-            f"the object runs off the image: {pixels} of its pixels on its"
-            f" {' and '.join(self.sides)} border{'s' if len(self.sides) > 1 else ''}: expected"
-            " the whole object in view (a wider field of view, or a camera further away or"
-            " aimed at it)"
-        )
+    noun = "border"
+    opening = "the object runs off the image: {pixels} of its pixels on its {sides}"
+    remedy = (
+        ": expected the whole object in view (a wider field of view, or a camera further"
+        " away or aimed at it)"
+    )
 
 
-class ObjectOccluded(PerceptionError):
+class ObjectOccluded(_UnboundedView):
     """The object's outline is hidden behind a nearer surface on a side nothing else
     bounds: its extent there is unknown, and the fit ends it where the view does (an
     audit: the Panda's can seen over its scene's wall from 50 degrees, the fit a disc of
@@ -261,15 +274,13 @@ class ObjectOccluded(PerceptionError):
         sides: The image sides hidden (``"top"``, ``"bottom"``, ``"left"``, ``"right"``).
     """
 
-    def __init__(self, pixels: int, sides: Sequence[str]) -> None:
-        self.pixels = pixels
-        self.sides = list(sides)
-        super().__init__(
-            f"the object is hidden behind a nearer surface on its {' and '.join(self.sides)}"
-            f" side{'s' if len(self.sides) > 1 else ''} ({pixels} outline pixels): the view"
-            " does not bound it there: expected a view that sees its outline (another"
-            " elevation or azimuth)"
-        )
+    opening = (
+        "the object is hidden behind a nearer surface on its {sides} ({pixels} outline pixels)"
+    )
+    remedy = (
+        ": the view does not bound it there: expected a view that sees its outline (another"
+        " elevation or azimuth)"
+    )
 
 
 class TooFewPoints(PerceptionError):
