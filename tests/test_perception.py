@@ -519,9 +519,10 @@ def test_an_object_whose_outline_is_hidden_is_refused(lwa3_can):
     can's lower half, no support is found that far below its points, and the fit was a
     disc of its top, 45 mm too high with a 0.7 mm sigma, written as an estimate. From 60
     degrees the wall hides its base too, but the table found under it bounds it. A post
-    in front of the LWA3's can hiding its left outline is refused as well (the view does
-    not bound it there, whatever the fit makes of it)."""
+    in front of the LWA3's can hides its left outline, but the fit's round side carries
+    on behind the post: that view is kept (within a few millimetres)."""
     from openup_ompl.exceptions import ObjectOccluded, PerceptionError
+    from openup_ompl.perception.perceive import occluded_outline
 
     panda = ou.load_scene(ROOT / "scenes" / "panda_can.toml")
     with pytest.raises(ObjectOccluded, match="bottom side") as refused:
@@ -537,9 +538,10 @@ def test_an_object_whose_outline_is_hidden_is_refused(lwa3_can):
     at = can[:2] - 0.12 * toward + 0.02 * across
     post = Shape("post", "box", np.array([*at, 0.2, 0, 0, 0, 1.0]), size=[0.02, 0.02, 0.4])
     hidden = dataclasses.replace(lwa3_can, obstacles=(*lwa3_can.obstacles, post))
-    with pytest.raises(ObjectOccluded) as refused:
-        perceive(hidden, rng=np.random.default_rng(1))
-    assert refused.value.sides == ["left"] and refused.value.pixels > 0
+    masks = occluded_outline(DepthCamera(hidden).render(), NoiseOptions())
+    assert masks["left"].any() and not masks["right"].any()
+    seen = perceive(hidden, rng=np.random.default_rng(1))
+    assert np.linalg.norm(seen.pose[:3] - can) < 0.005
 
 
 def test_the_closed_loop_defaults_are_the_commands():
