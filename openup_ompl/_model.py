@@ -42,3 +42,10 @@ def moved_by(model: pin.Model, geometry: pin.GeometryModel, joints: Sequence[str
         [bool(ids.intersection(model.supports[g.parentJoint])) for g in geometry.geometryObjects],
         dtype=bool,
     )
+
+
+def selector(indices: np.ndarray) -> slice | np.ndarray:
+    """A slice equal to a run of consecutive indices (faster indexing), else the indices."""
+    if indices.size and np.all(np.diff(indices) == 1):
+        return slice(int(indices[0]), int(indices[-1]) + 1)
+    return indices

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from openup_ompl._model import selector
 from openup_ompl._toml import is_finite, is_integer
 from openup_ompl.exceptions import ConfigError
 from openup_ompl.robot import Robot
@@ -103,6 +104,10 @@ class IKSolver:
         self._frame = robot.palm_frame_id
         self._lower = robot.arm_lower
         self._upper = robot.arm_upper
+        # Slices where the arm's indices run consecutively (every shipped robot): the
+        # same values, without fancy indexing's cost in each iteration.
+        self._arm = selector(robot.arm_idx)
+        self._columns = selector(robot.arm_v_idx)
         self._q = robot.neutral()
         self._damping_eye = self.options.damping * np.eye(6)
         self.calls = 0
@@ -125,8 +130,9 @@ class IKSolver:
         target = self.target if target is None else target
         options = self.options
         model, data, q = self._model, self._data, self._q
-        arm_idx, v_idx = self.robot.arm_idx, self.robot.arm_v_idx
-        x = np.clip(np.asarray(arm, dtype=float), self._lower, self._upper)
+        arm_idx, v_idx = self._arm, self._columns
+        lower, upper = self._lower, self._upper
+        x = np.clip(np.asarray(arm, dtype=float), lower, upper)
         self.calls += 1
         stall_ratio_sq = options.stall_ratio**2
         checkpoint = math.inf
@@ -150,7 +156,8 @@ class IKSolver:
             jacobian = pin.computeFrameJacobian(model, data, q, self._frame, pin.LOCAL)[:, v_idx]
             jacobian = -pin.Jlog6(error_placement.inverse()) @ jacobian
             step = -jacobian.T @ np.linalg.solve(jacobian @ jacobian.T + self._damping_eye, err)
-            x = np.clip(x + options.step * step, self._lower, self._upper)
+            # np.clip's own value, at a fraction of its call overhead on 7 numbers.
+            x = np.minimum(np.maximum(x + options.step * step, lower), upper)
         return None
 
     def palm_step(self, arm: np.ndarray, offset: np.ndarray) -> np.ndarray | None:

@@ -14,6 +14,7 @@ import numpy as np
 import pinocchio as pin
 from ompl import base as ob
 
+from openup_ompl._model import selector
 from openup_ompl._toml import is_finite, is_integer, is_number
 from openup_ompl.collision import CollisionWorld, ThreadContext
 from openup_ompl.exceptions import ConfigError, InvalidProblem
@@ -182,8 +183,8 @@ class CoupledChecker:
         )
         self._arm_idx = self.robot.arm_idx
         self._hand_idx = self.robot.hand_idx
-        self._arm_sel = _selector(self._arm_idx)
-        self._hand_sel = _selector(self._hand_idx)
+        self._arm_sel = selector(self._arm_idx)
+        self._hand_sel = selector(self._hand_idx)
         self._translation_only = self.law.distance == "translation"
         self._goal = problem.grasp.translation.tolist()
         self._inv_start = 1.0 / self.goal_distance.start_distance
@@ -720,13 +721,6 @@ def _check_reach(grasp: pin.SE3, start_placement: pin.SE3, law: HandLaw) -> None
             f"under {MIN_LAW_TRAVEL * 1e3:g} mm: the checks near the grasp grow as its "
             "inverse; start farther from the grasp, raise mga or fix the hand"
         )
-
-
-def _selector(indices: np.ndarray) -> slice | np.ndarray:
-    """A slice equal to a run of consecutive indices (faster assignment), else the indices."""
-    if indices.size and np.all(np.diff(indices) == 1):
-        return slice(int(indices[0]), int(indices[-1]) + 1)
-    return indices
 
 
 class CoupledValidityChecker(ob.StateValidityChecker):
