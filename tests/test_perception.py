@@ -519,15 +519,23 @@ def test_an_object_whose_outline_is_hidden_is_refused(lwa3_can):
     can's lower half, no support is found that far below its points, and the fit was a
     disc of its top, 45 mm too high with a 0.7 mm sigma, written as an estimate. From 60
     degrees the wall hides its base too, but the table found under it bounds it. A post
-    in front of the LWA3's can hides its left outline, but the fit's round side carries
-    on behind the post: that view is kept (within a few millimetres)."""
+    in front of the LWA3's can hiding its left outline is refused as well (the view does
+    not bound it there, whatever the fit makes of it)."""
     from openup_ompl.exceptions import ObjectOccluded, PerceptionError
-    from openup_ompl.perception.perceive import occluded_outline
 
     panda = ou.load_scene(ROOT / "scenes" / "panda_can.toml")
-    with pytest.raises(ObjectOccluded, match="bottom side") as refused:
-        perceive(panda, CameraOptions(elevation=50.0), rng=np.random.default_rng(3))
-    assert isinstance(refused.value, PerceptionError) and refused.value.sides == ["bottom"]
+    camera = DepthCamera(panda, CameraOptions(elevation=50.0))
+    # Every view, whatever its noise: a rule that let the fit's own extent behind the wall
+    # bound it accepted views 37-43 mm off (noise 1 seed 7; noise 4 seeds 1, 4, 6, 8).
+    for noise, seed in [(1.0, 3), (1.0, 7), (4.0, 1), (4.0, 4), (4.0, 6), (4.0, 8)]:
+        with pytest.raises(ObjectOccluded, match="bottom side") as refused:
+            perceive(
+                panda,
+                noise=NoiseOptions(scale=noise),
+                depth_camera=camera,
+                rng=np.random.default_rng(seed),
+            )
+        assert isinstance(refused.value, PerceptionError) and refused.value.sides == ["bottom"]
     seen = perceive(panda, CameraOptions(elevation=60.0), rng=np.random.default_rng(3))
     assert abs(seen.pose[2] - panda.object.pose[2]) < 0.003
 
@@ -538,10 +546,9 @@ def test_an_object_whose_outline_is_hidden_is_refused(lwa3_can):
     at = can[:2] - 0.12 * toward + 0.02 * across
     post = Shape("post", "box", np.array([*at, 0.2, 0, 0, 0, 1.0]), size=[0.02, 0.02, 0.4])
     hidden = dataclasses.replace(lwa3_can, obstacles=(*lwa3_can.obstacles, post))
-    masks = occluded_outline(DepthCamera(hidden).render(), NoiseOptions())
-    assert masks["left"].any() and not masks["right"].any()
-    seen = perceive(hidden, rng=np.random.default_rng(1))
-    assert np.linalg.norm(seen.pose[:3] - can) < 0.005
+    with pytest.raises(ObjectOccluded) as refused:
+        perceive(hidden, rng=np.random.default_rng(1))
+    assert refused.value.sides == ["left"] and refused.value.pixels > 0
 
 
 def test_the_closed_loop_defaults_are_the_commands():

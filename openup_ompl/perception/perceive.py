@@ -39,7 +39,6 @@ from openup_ompl.perception.superquadric import (
     N_PARAMETERS,
     FitOptions,
     Silhouette,
-    Superquadric,
     SuperquadricFit,
     fit_superquadric,
 )
@@ -135,20 +134,15 @@ def _occluder(view: DepthView, noise: NoiseOptions) -> np.ndarray:
 _SIDES = {"top": (-1, 0), "bottom": (1, 0), "left": (0, -1), "right": (0, 1)}
 
 
-def occluded_outline(view: DepthView, noise: NoiseOptions) -> dict[str, np.ndarray]:
+def occluded_outline(view: DepthView, noise: NoiseOptions) -> dict[str, tuple[int, int]]:
     """Per image side, the object's outline pixels on it whose next pixel beyond is an
-    occluder (a measured surface nearer than the object's nearest point): ``{side: (H, W)
-    mask}``. The table in front of a standing object's base lies behind its nearest point
-    and hides nothing."""
-    return _outline(view, noise)[0]
-
-
-def _outline(view: DepthView, noise: NoiseOptions) -> tuple[dict[str, np.ndarray], dict[str, int]]:
-    """:func:`occluded_outline`'s hidden outline masks, and each side's outline count."""
+    occluder (a measured surface nearer than the object's nearest point), and all its
+    outline pixels on it: ``{side: (hidden, outline)}``. The table in front of a standing
+    object's base lies behind its nearest point and hides nothing."""
     shape = (view.height, view.width)
     on_object = view.on_object.reshape(shape)
     occluder = _occluder(view, noise).reshape(shape)
-    hidden_masks, counts = {}, {}
+    counts = {}
     for side, (dr, dc) in _SIDES.items():
         # beyond[r, c]: the pixel (r + dr, c + dc), False off the image.
         inside = np.zeros(shape, dtype=bool)
@@ -160,46 +154,13 @@ def _outline(view: DepthView, noise: NoiseOptions) -> tuple[dict[str, np.ndarray
         inside[rows, cols] = on_object[beyond_rows, beyond_cols]
         hidden[rows, cols] = occluder[beyond_rows, beyond_cols]
         outline = on_object & ~inside
-        hidden_masks[side] = outline & hidden
-        counts[side] = int(np.count_nonzero(outline))
-    return hidden_masks, counts
-
-
-def _continues_behind(
-    superquadric: Superquadric,
-    view: DepthView,
-    camera: CameraOptions,
-    side: str,
-    hidden: np.ndarray,
-) -> bool:
-    """Whether the fit's image reaches :data:`REACH_BEHIND` pixels past at least half of
-    the ``hidden`` outline pixels on ``side``: its visible surface's shape carries it on
-    behind the occluder (a can's round side), rather than ending where the view ends (a
-    box's face, a can's height)."""
-    fx, fy, cx, cy = camera.intrinsics()
-    local = (superquadric.surface(40).reshape(-1, 3) - view.position) @ view.rotation
-    z = np.maximum(local[:, 2], 1e-3)
-    column = fx * local[:, 0] / z + cx - 0.5
-    row = fy * local[:, 1] / z + cy - 0.5
-    dr, dc = _SIDES[side]
-    along, across = (row, column) if dc == 0 else (column, row)
-    sign = dr + dc
-    rows, columns = np.nonzero(hidden)
-    edges, lines = (rows, columns) if dc == 0 else (columns, rows)
-    bins = np.rint(across).astype(int)
-    reached = 0
-    for edge, line in zip(edges, lines, strict=True):
-        beyond = sign * (along[bins == line] - edge)
-        reached += beyond.size > 0 and float(beyond.max()) >= REACH_BEHIND
-    return reached >= 0.5 * edges.size
+        counts[side] = (int(np.count_nonzero(outline & hidden)), int(np.count_nonzero(outline)))
+    return counts
 
 
 #: An image side is hidden when more than this share of the object's outline on it lies
 #: next to an occluder (:func:`occluded_outline`).
 HIDDEN_SHARE = 0.5
-#: How far [px] past its hidden outline the fit's image must reach for the fit to bound
-#: the object there itself (:func:`_continues_behind`): the silhouette's band is 1 px.
-REACH_BEHIND = 2.0
 
 
 #: A fitted half-size within this factor of ``FitOptions.min_size`` is a collapsed fit
@@ -252,10 +213,8 @@ def perceive(
             bound it).
         ObjectOccluded: More than :data:`HIDDEN_SHARE` of the object's outline on one
             image side lies next to a nearer surface (:func:`occluded_outline`), and
-            nothing bounds it there: not the surface it stands on (the bottom of an
-            object whose support the rays find), nor the fit itself (its image ends
-            within :data:`REACH_BEHIND` pixels of that outline: a box's face, a can's
-            height, rather than a round side that carries on behind the occluder).
+            nothing else bounds it there (the bottom of an object standing on a surface
+            the rays find does not count).
         DegenerateFit: The fit collapsed onto one face (a half-size within
             :data:`DEGENERATE_FACTOR` of its lower bound).
     """
@@ -299,23 +258,16 @@ def perceive(
         edge[1:-1, 1:-1] = False
         raise ObjectCutOff(int(edge.sum()), sides)
     support = cam.support_under(cloud.points, view) if silhouette else None
-    masks, outline = _outline(view, noise)
     hidden = {
-        side: mask
-        for side, mask in masks.items()
-        if np.count_nonzero(mask) > HIDDEN_SHARE * outline[side]
-        and not (side == "bottom" and support is not None)
+        side: count
+        for side, (count, outline) in occluded_outline(view, noise).items()
+        if count > HIDDEN_SHARE * outline and not (side == "bottom" and support is not None)
     }
+    if hidden:
+        raise ObjectOccluded(sum(hidden.values()), list(hidden))
     shape = silhouette_of(view, noise, cam.options, support) if silhouette else None
     weights = normal_sigma(cam.position, cam.rotation, noise) if weighted else None
     result = fit_superquadric(cloud.points, fit, shape, weights)
-    unbounded = [
-        side
-        for side, mask in hidden.items()
-        if not _continues_behind(result.superquadric, view, cam.options, side, mask)
-    ]
-    if unbounded:
-        raise ObjectOccluded(sum(int(np.count_nonzero(hidden[s])) for s in unbounded), unbounded)
     bound = (fit or FitOptions()).min_size
     if float(np.min(result.superquadric.sizes)) <= DEGENERATE_FACTOR * bound:
         raise DegenerateFit(result.superquadric.sizes.tolist(), bound)
