@@ -106,8 +106,7 @@ def check_scheduler(address: str, where: str = "scheduler") -> str:
         return address
     try:
         scheme, location = parse_address(address)
-        if scheme not in registry.backends:
-            raise ValueError(f"unknown scheme {scheme!r}, not one of {sorted(registry.backends)}")
+        registry.get_backend(scheme)  # loads one installed by an entry point, or says why not
         if scheme != "inproc":
             host, port = parse_host_port(location)
             if not host or not 0 < port < 2**16:
