@@ -1,0 +1,49 @@
+"""``openup-ompl execute PLAN.json``: run a plan in physics (MuJoCo)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from openup_ompl.cli._common import dir_out, out_path, seed
+
+HELP = (
+    "run a plan in physics (MuJoCo): reach with the object free, close, lift 10 cm,"
+    " hold; exit 0 held, 1 failed"
+)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The plan, the object's pose error, ``--out`` and the seed."""
+    parser.add_argument("plan", type=Path, help="plan JSON (README, Files: Plan)")
+    parser.add_argument(
+        "--object-offset",
+        type=float,
+        nargs=3,
+        default=(0.0, 0.0, 0.0),
+        metavar=("DX", "DY", "YAW"),
+        help="true object pose error: world x, y [m] and yaw about its own z [rad]",
+    )
+    parser.add_argument(
+        "--out", type=out_path, default=None, help="output directory (default: the plan's)"
+    )
+    parser.add_argument(
+        "--seed", type=seed, default=1, help="run seed (draws PhysicsOptions.object_jitter)"
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Execute the plan and write ``execution.json``. Returns 0 on a held grasp, 1 on a
+    failed one.
+
+    Raises:
+        ConfigError: A bad plan, offset or ``--out``.
+    """
+    from openup_ompl.physics import execute_plan, write_execution
+
+    if args.out is not None:
+        dir_out(args.out)
+    record = execute_plan(args.plan, args.object_offset, seed=args.seed)
+    path = write_execution(record, args.out if args.out is not None else args.plan.parent)
+    print(f"{record.verdict} (execution written to {path})")
+    return 0 if record.success else 1
