@@ -81,6 +81,7 @@ class Plan:
             "solve_time_s": self.solve_time_s,
             "robot": {
                 "name": spec.name,
+                "file": str(spec.path),
                 "urdf": str(robot.urdf),
                 "srdf": None if robot.srdf is None else str(robot.srdf),
                 "package_dirs": list(robot.package_dirs),

@@ -524,6 +524,8 @@ class GraspPlanningSetup:
             "ik_calls": self.ik.calls - ik_before,
             "waypoints": int(waypoints.shape[0]),
             "approach_states": approach,
+            "resolution": self.checker.resolution,  # [m] what a re-validation checks with
+            "padding": self.checker.world.padding,  # [m]
         }
         if restarting:
             stats["restarts"] = restarts

@@ -201,6 +201,17 @@ def add_planning_options(sub: argparse.ArgumentParser, default_time: float) -> N
     )
 
 
+def add_validate_option(parser: argparse.ArgumentParser) -> None:
+    """``--no-validate``: use a plan without re-validating it (``execute``, ``show``)."""
+    parser.add_argument(
+        "--no-validate",
+        action="store_true",
+        help="for experts: use the plan without re-validating it against its scene (joint"
+        " limits, the hand on the law, steps within the motion check's resolution, every"
+        " motion collision-free); a plan that fails it is otherwise refused (exit 2)",
+    )
+
+
 def plan_scene(args: argparse.Namespace, scene: Path) -> tuple[GraspPlanningSetup, Plan]:
     """Plan ``scene`` with the options of :func:`add_planning_options`.
 
