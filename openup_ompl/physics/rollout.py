@@ -40,7 +40,7 @@ from openup_ompl.grasp import closing_limits
 from openup_ompl.physics.options import PHASE_MAX, PhysicsOptions
 from openup_ompl.physics.record import ExecutionRecord
 from openup_ompl.physics.trajectory import time_path
-from openup_ompl.physics.world import OBJECT, OBSTACLE, ROBOT, World, build_world
+from openup_ompl.physics.world import NEIGHBOUR, OBJECT, OBSTACLE, ROBOT, World, build_world
 from openup_ompl.plan import Plan, PlanFile
 
 __all__ = ["Rollout", "check_offset", "closed_targets", "execute_plan", "lift_rows"]
@@ -199,6 +199,36 @@ def _pose_change(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
     return float(np.linalg.norm(delta[:3, 3])), float(math.acos(min(1.0, max(-1.0, cos))))
 
 
+def _body_transform(sim: Any, body: int) -> np.ndarray:
+    """The ``(4, 4)`` world transform of a body."""
+    t = np.eye(4)
+    t[:3, :3] = sim.xmat[body].reshape(3, 3)
+    t[:3, 3] = sim.xpos[body]
+    return t
+
+
+def _disturbance(
+    name: str,
+    start: np.ndarray,
+    end: np.ndarray,
+    options: PhysicsOptions,
+    touched: dict[str, Any] | None,
+) -> dict[str, Any]:
+    """How a neighbour moved between two world transforms: its displacement, the turn of
+    its up axis (its own z) and the thresholds' verdicts."""
+    moved = float(np.linalg.norm(end[:3, 3] - start[:3, 3]))
+    cos = float(np.dot(start[:3, 2], end[:3, 2]))
+    tilt = math.acos(min(1.0, max(-1.0, cos)))
+    return {
+        "name": name,
+        "moved_mm": moved * 1e3,
+        "tilt_deg": math.degrees(tilt),
+        "moved": moved > options.neighbour_moved_distance,
+        "tipped": tilt > options.neighbour_tipped_angle,
+        "touched": touched,
+    }
+
+
 class Rollout:
     """One plan in one physics world; :meth:`run` executes it against an offset object.
 
@@ -323,7 +353,8 @@ class Rollout:
         hand, arm = world.hand, world.arm
         kinds, links = world.geom_kind, world.geom_link
         period = max(1, round(options.frame_period / dt))
-        kept: dict[str, list[Any]] = {"q": [], "object": [], "phase": []}
+        kept: dict[str, Any] = {"q": [], "object": [], "phase": [], "neighbours": {}}
+        neighbour_names = [shape.name for shape in world.neighbours]
         state: dict[str, Any] = {
             "step": 0,
             "first": None,
@@ -335,6 +366,7 @@ class Rollout:
             "pressed_phase": None,
             "gripped": 0.0,
             "top": -math.inf,  # the object's highest z [m] over the lift and hold
+            "neighbours": {},  # shape name -> its first robot contact
         }
         tracking = {"reach_arm": 0.0, "reach_hand": 0.0, "lift_arm": 0.0}
 
@@ -391,6 +423,11 @@ class Rollout:
                                 "d": d,
                                 "phase": state["phase"],
                             }
+                    elif kinds[other] == NEIGHBOUR:
+                        if links[other] not in state["neighbours"]:
+                            state["neighbours"][links[other]] = {
+                                "link": link, "time_s": time, "phase": state["phase"]
+                            }  # fmt: skip
                     elif kinds[other] == OBSTACLE:
                         key = (link, links[other])
                         if key not in state["obstacles"]:
@@ -405,6 +442,9 @@ class Rollout:
                 p = sim.qpos[world.object_qpos : world.object_qpos + 7]
                 kept["object"].append([*p[:3], p[4], p[5], p[6], p[3]])
                 kept["phase"].append(state["phase"])
+                for name, body in zip(neighbour_names, world.neighbour_body, strict=True):
+                    p = sim.xpos[body].tolist() + sim.xquat[body].tolist()
+                    kept["neighbours"].setdefault(name, []).append([*p[:3], *p[4:], p[3]])
 
         def check_stable() -> None:
             for warning, what in UNSTABLE:
@@ -423,6 +463,7 @@ class Rollout:
         run_for(options.settle)
         check_stable()
         settled = object_transform()
+        neighbours_settled = [_body_transform(sim, b) for b in world.neighbour_body]
 
         state["phase"] = "reach"
         reach_steps = math.ceil(self.timed.duration / dt) + round(0.1 / dt)
@@ -512,7 +553,7 @@ class Rollout:
             a, b = int(g[0]), int(g[1])
             if kinds[b] == ROBOT:
                 a, b = b, a
-            if kinds[a] == ROBOT and kinds[b] in (OBJECT, OBSTACLE):
+            if kinds[a] == ROBOT and kinds[b] in (OBJECT, OBSTACLE, NEIGHBOUR):
                 final.add((links[a], links[b]))
                 holding |= kinds[b] == OBJECT
             elif {int(kinds[a]), int(kinds[b])} == {OBJECT, OBSTACLE}:
@@ -576,6 +617,13 @@ class Rollout:
             )
         law = self.data.get("hand_law") or {}
         robot = self.data.get("robot") or {}
+        neighbours = [
+            _disturbance(shape.name, start, _body_transform(sim, body), options,
+                         state["neighbours"].get(shape.name))
+            for shape, start, body in zip(
+                world.neighbours, neighbours_settled, world.neighbour_body, strict=True
+            )
+        ]  # fmt: skip
         return ExecutionRecord(
             success=cause is None,
             cause=cause,
@@ -611,6 +659,10 @@ class Rollout:
             },
             options=dataclasses.asdict(options),
             steps=int(state["step"]),
+            neighbours=neighbours,
+            neighbour_moved=any(n["moved"] for n in neighbours),
+            neighbour_tipped=any(n["tipped"] for n in neighbours),
+            neighbour_touched=any(n["touched"] is not None for n in neighbours),
             frames={
                 "period_s": period * dt,
                 "joint_names": world.joint_names,

@@ -120,8 +120,13 @@ def _storyboard(scene: PlanScene, execution: dict[str, Any], out: str | Path, dp
 
     def environment(k: int, low: np.ndarray, high: np.ndarray) -> list[Any]:
         moved = dataclasses.replace(target, pose=poses[k])
+        pushed = frames.get("neighbours") or {}  # movable obstacles' poses per frame
+        shapes = [
+            dataclasses.replace(s, pose=np.asarray(pushed[s.name][k])) if s.name in pushed else s
+            for s in obstacles
+        ]
         layers = []
-        for shape in [*obstacles, moved]:
+        for shape in [*shapes, moved]:
             clipped = _clipped(shape, low, high)
             if clipped is not None:
                 color = OBJECT_COLOR if shape is moved else OBSTACLE_COLOR
