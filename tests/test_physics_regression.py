@@ -45,3 +45,18 @@ def test_every_recorded_verdict_is_reproduced(index):
     """Every stored plan and offset gives its recorded verdict and numbers."""
     case = regression.load()[index]
     _check(case, case["trials"])
+
+
+def test_a_plan_in_memory_executes_as_its_file_contents():
+    """Rollout(plan) takes the plan's problem as it is, without the file round trip, and
+    gives the same record as the plan's file contents (a held and a pushed trial)."""
+    import openup_ompl as ou
+
+    problem = ou.load_scene(regression.ROOT / "scenes" / "panda_can.toml")
+    plan = ou.GraspPlanningSetup(problem).solve(time_limit=5.0, planner="ikbirrt", seed=1)
+    in_memory, from_file = Rollout(plan), Rollout(plan.to_dict())
+    assert in_memory.source.object is problem.object
+    for offset in ((0.0, 0.0, 0.0), (0.0, 0.01, 0.0)):
+        a = in_memory.run(offset, frames=False).to_dict(frames=False)
+        b = from_file.run(offset, frames=False).to_dict(frames=False)
+        assert a == b, offset

@@ -34,7 +34,7 @@ __all__ = [
 EXECUTION_FORMAT = "openup-execution/1"
 
 #: The rollout's phases, in order (:mod:`~openup_ompl.physics.rollout`).
-PHASES = ("settle", "reach", "close", "lift", "hold")
+PHASES = ("settle", "reach", "close", "squeeze", "lift", "hold")
 
 
 @dataclass
@@ -75,7 +75,9 @@ class ExecutionRecord:
             "robot_object_mm"}``: MuJoCo's contacts are soft; beyond
             ``PhysicsOptions.max_penetration`` between object and obstacle the trial is
             ``"jammed"`` (the hand forced the object into the scene).
-        phases: Duration of each phase [s]: ``settle, reach, close, lift, hold``.
+        phases: Duration of each phase [s]: ``settle, reach, close, squeeze, lift,
+            hold`` (files written before the squeeze was its own phase count it in
+            ``close``).
         plan: What was executed: ``{"robot", "planner", "seed", "u", "rows"}``.
         options: The :class:`~openup_ompl.physics.options.PhysicsOptions` used.
         steps: Simulation steps.

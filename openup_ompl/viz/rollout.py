@@ -63,8 +63,8 @@ def _loaded(execution: dict[str, Any], where: str = "") -> tuple[PlanScene, dict
 
 def key_frames(execution: dict[str, Any]) -> list[tuple[int, str]]:
     """``(frame, title)`` of the instants the storyboard shows: the start, the first
-    hand-object contact if it came before closing, the end of each of reach, close,
-    lift and hold."""
+    hand-object contact if it came before closing, the end of each of reach, close
+    (with the squeeze), lift and hold."""
     frames = execution["frames"]
     phases = frames["phase"]
     period = frames["period_s"]
@@ -74,13 +74,13 @@ def key_frames(execution: dict[str, Any]) -> list[tuple[int, str]]:
         k = min(len(phases) - 1, int(first["time_s"] / period))
         d = "?" if first.get("d") is None else f"{first['d']:.2f}"
         keys.append((k, f"touch: {first['link']}\nd = {d}"))
-    for phase, title in (
-        ("reach", "end of reach"),
-        ("close", "hand closed"),
-        ("lift", "top of lift"),
-        ("hold", "end of hold"),
+    for names, title in (
+        (("reach",), "end of reach"),
+        (("close", "squeeze"), "hand closed"),
+        (("lift",), "top of lift"),
+        (("hold",), "end of hold"),
     ):
-        indices = [i for i, p in enumerate(phases) if p == phase]
+        indices = [i for i, p in enumerate(phases) if p in names]
         if indices:
             keys.append((indices[-1], title))
     return keys
