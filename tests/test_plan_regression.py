@@ -37,7 +37,8 @@ ompl_util.setLogLevel(ompl_util.LOG_ERROR)
 
 def _scene_path(scene: str) -> Path:
     kind, name = scene.split("/")
-    return SCENES / f"{name}.toml" if kind == "tests" else default_problems_dir(kind) / f"{name}.toml"
+    folder = SCENES if kind == "tests" else default_problems_dir(kind)
+    return folder / f"{name}.toml"
 
 
 def _plan_summary(scene: str, hand: str | None, seed: int) -> dict[str, Any]:
