@@ -62,12 +62,8 @@ from openup_ompl.grasp import (
     object_axis,
 )
 from openup_ompl.plan import Plan
-from openup_ompl.planning import (
-    GraspPlanningSetup,
-    PlanningOptions,
-    check_planner,
-    check_time_limit,
-)
+from openup_ompl.planning import GraspPlanningSetup
+from openup_ompl.planning_options import PlanningOptions, check_planner, check_time_limit
 from openup_ompl.robustness_report import markdown_tables, plot_robustness, write_csv
 from openup_ompl.scene import Problem, Shape, load_scene
 from openup_ompl.viz.grasps import write_grasp_figure
