@@ -200,7 +200,9 @@ class _Draw:
 
     def neighbour(self, name: str, obj_r: float, obj_h: float, angle: float) -> Shape:
         r, gap = self.uniform(0.02, 0.035), self.uniform(*GAP_RANGE)
-        h = obj_h * self.uniform(0.6, 1.1)
+        # The Panda's palm, 0.2 m wide along the closing axis, passes just above the
+        # object's top: a neighbour no taller than the object stays under it.
+        h = obj_h * self.uniform(0.6, 1.0 if self.robot == "panda" else 1.1)
         distance = obj_r + gap + r
         x, y = distance * math.cos(angle), distance * math.sin(angle)
         physics = {"movable": True, "mass": self.uniform(0.1, 0.3)} if MOVABLE_NEIGHBOURS else {}
@@ -247,17 +249,25 @@ def _mesh_object(draw: _Draw) -> tuple[Shape, float, float]:
     return shape, r, h
 
 
+def _side(reach: np.ndarray, sign: float) -> float:
+    """The reach [m] on the ``+y`` (``sign >= 0``) or ``-y`` side."""
+    return float(reach[1] if sign >= 0 else reach[2])
+
+
 def _obstacles(kind: str, draw: _Draw, reach: np.ndarray, height: float) -> list[Shape]:
     """The neighbours or walls of a kind (none for an isolated object); ``reach``: how
-    far the object or the closed hand extends from the object's axis along local x, y
-    [m] (gaps are measured from there)."""
+    far the object or the ``u = 0`` hand extends from the object's axis along local +x,
+    +y and -y [m] (gaps are measured from there)."""
     sign = 1.0 if draw.rng.random() < 0.5 else -1.0
+    # Boards stand 5 cm above the object beside the LWA3-SDH's side approach; the Panda's
+    # palm passes just above the object's top, so its boards end level with it.
+    board = height + (0.0 if draw.robot == "panda" else 0.05)
     if kind == "wall":
-        return [draw.wall("wall", sign, reach[1], height + 0.05)]
+        return [draw.wall("wall", sign, _side(reach, sign), board)]
     if kind == "shelf":
         x = reach[0] + draw.uniform(*GAP_RANGE) + 0.01
-        back = _box("back", draw.frame, (0.02, 0.4, height + 0.05), x)
-        sides = [draw.wall(f"side_{i}", s, reach[1], height + 0.05) for i, s in enumerate((1, -1))]
+        back = _box("back", draw.frame, (0.02, 0.4, board), x)
+        sides = [draw.wall(f"side_{i}", s, _side(reach, s), board) for i, s in enumerate((1, -1))]
         return [*sides, back]
     if kind != "clutter":
         return []
@@ -266,10 +276,11 @@ def _obstacles(kind: str, draw: _Draw, reach: np.ndarray, height: float) -> list
     # anywhere off the approach corridor (the LWA3-SDH comes from local -x).
     limit = math.pi if draw.robot == "panda" else math.radians(120)
     first = sign * math.pi / 2 + draw.uniform(-0.4, 0.4)
-    neighbours = [draw.neighbour("neighbour_0", reach[1], height, first)]
+    neighbours = [draw.neighbour("neighbour_0", _side(reach, sign), height, first)]
     for i in range(1, count):
         angle = draw.uniform(-limit, limit)
-        offset = float(np.hypot(reach[0] * math.cos(angle), reach[1] * math.sin(angle)))
+        side = _side(reach, math.sin(angle))
+        offset = float(np.hypot(reach[0] * math.cos(angle), side * math.sin(angle)))
         neighbours.append(draw.neighbour(f"neighbour_{i}", offset, height, angle))
     return neighbours
 
@@ -311,10 +322,17 @@ def _draw_once(family: Family, template: Problem, draw: _Draw) -> Problem:
     grasp = _grasp(family.robot, draw.frame, template, height)
     law = _hand(template.robot, template, half)
     bare = Problem(template.robot, template.start, grasp, law, support, obj)
-    sweep, turn = HandSweep(bare), draw.frame.yaw
-    axes = [np.array([math.cos(turn), math.sin(turn), 0.0]),
-            np.array([-math.sin(turn), math.cos(turn), 0.0])]  # fmt: skip
-    reach = np.array([max(half, sweep.half_extent(a, obj.pose[:3])) for a in axes])
+    turn = draw.frame.yaw
+    x = np.array([math.cos(turn), math.sin(turn), 0.0])
+    y = np.array([-math.sin(turn), math.cos(turn), 0.0])
+    # Gaps count from the farther of the object's surface and the u = 0 hand (its whole
+    # approach and its closing): the baseline is clear of every neighbour by construction.
+    # The LWA3-SDH's thumb (local -y) yields to its limit when the fingers push the object
+    # against it: on that side gaps count from the thumb opened to w.
+    sweep = HandSweep(bare)
+    ahead, left = sweep.reach(obj.pose[:3], [x, y])
+    (right,) = sweep.reach(obj.pose[:3], [-y], yielded=family.robot == "lwa3_sdh")
+    reach = np.array([max(half, ahead), max(half, left), max(half, right)])
     obstacles = support + _obstacles(family.kind, draw, reach, height)
     return dataclasses.replace(bare, obstacles=obstacles)
 
@@ -343,7 +361,7 @@ def instance_problem(
         assert problem.object is not None
         if _overlaps(problem.obstacles, problem.object):
             continue
-        if HandSweep(problem).goal_clear():
+        if HandSweep(problem).approach_clear():
             return problem
     raise ConfigError("family", family.name, f"an instance clear at u = 0 in {MAX_DRAWS} draws")
 
@@ -353,4 +371,3 @@ def template_scene(family: Family, robot: Robot | None = None) -> Problem:
     if family.scene is not None:
         return load_scene(family.scene, robot)
     return load_scene(data_dir("scenes") / ROBOTS[family.robot], robot)
-

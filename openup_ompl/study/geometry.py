@@ -8,6 +8,7 @@ import numpy as np
 import pinocchio as pin
 
 from openup_ompl._model import moved_by
+from openup_ompl.grasp import closed_configuration
 from openup_ompl.scene import Problem, Shape
 
 __all__ = ["SUPPORT", "HandSweep", "shape_distance"]
@@ -100,25 +101,57 @@ class HandSweep:
                     out[k] = min(out[k], gap)
         return out
 
-    def goal_clear(self) -> bool:
-        """The fingers at the grasp, in the closed preshape, touch no obstacle."""
-        return bool(self.clearance(0.0)[0] > 0.0)
+    def approach_clear(self) -> bool:
+        """The fingers at ``u = 0`` touch no obstacle anywhere on the approach."""
+        return bool(np.all(self.clearance(0.0) > 0.0))
 
-    def half_extent(self, direction: np.ndarray, centre: np.ndarray) -> float:
-        """How far [m] the fingers at the grasp (closed preshape) reach from ``centre``
-        along +-``direction`` (a world unit vector)."""
-        _, palm = self.steps[0]
-        reach = 0.0
+    def _baseline_hands(self, yielded: bool = False) -> list[tuple[pin.SE3, np.ndarray]]:
+        """Palm placements and hand joints of the ``u = 0`` hand: along the approach (the
+        law's opening), then at the grasp closing from ``c`` to the closed configuration
+        with nothing in the way (farther than the object lets them go); ``yielded`` adds
+        the hand at the grasp opened to its joint limits on ``w``'s side (a finger the
+        squeezed object pushes back to its limit, as the LWA3-SDH's thumb is in physics)."""
+        law = self.problem.hand_law.with_options(u=0.0)
+        rows = [(palm, law(d)) for d, palm in self.steps]
+        c = np.asarray(law.c, dtype=float)
+        closed = closed_configuration(self.problem)
+        target = c.copy()
+        target[: closed.size] = np.where(np.isnan(closed), c[: closed.size], closed)
+        grasp = self.steps[0][1]
+        rows += [(grasp, c + s * (target - c)) for s in np.linspace(0.0, 1.0, 6)[1:]]
+        if yielded:
+            robot = self.problem.robot
+            limits = self.model.lowerPositionLimit, self.model.upperPositionLimit
+            n = robot.n_driven
+            lower, upper = (x[robot.hand_idx[:n]] for x in limits)
+            w = np.asarray(law.w, dtype=float)
+            limit = np.where(w[:n] < c[:n], lower, np.where(w[:n] > c[:n], upper, c[:n]))
+            # Joints pushed open to their limit, the others anywhere from c to closed.
+            back = w[:n] < c[:n]
+            for others in (c, target, limit):
+                hand = c.copy()
+                hand[:n] = np.where(back, limit, others[:n])
+                rows.append((grasp, hand))
+        return rows
+
+    def reach(
+        self, centre: np.ndarray, directions: list[np.ndarray], yielded: bool = False
+    ) -> np.ndarray:
+        """How far [m] the ``u = 0`` hand's fingers (:meth:`_baseline_hands`) reach from
+        ``centre`` along each world unit vector of ``directions`` (signed: the largest
+        projection, 0 if none is positive); ``yielded``: see :meth:`_baseline_hands`."""
         signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)])
-        placements = self._finger_placements(self.problem.hand_law.c)
-        for finger, local in zip(self.fingers, placements, strict=True):
-            shape = finger.geometry
-            shape.computeLocalAABB()
-            low, high = np.asarray(shape.aabb_local.min_), np.asarray(shape.aabb_local.max_)
-            corners = (low + high) / 2 + signs * (high - low) / 2
-            world = palm * local
-            points = corners @ world.rotation.T + world.translation
-            reach = max(reach, float(np.max(np.abs((points - centre) @ direction))))
+        axes = np.array(directions, dtype=float)
+        reach = np.zeros(len(axes))
+        for palm, hand in self._baseline_hands(yielded):
+            for finger, local in zip(self.fingers, self._finger_placements(hand), strict=True):
+                shape = finger.geometry
+                shape.computeLocalAABB()
+                low, high = np.asarray(shape.aabb_local.min_), np.asarray(shape.aabb_local.max_)
+                corners = (low + high) / 2 + signs * (high - low) / 2
+                world = palm * local
+                points = corners @ world.rotation.T + world.translation
+                reach = np.maximum(reach, np.max((points - centre) @ axes.T, axis=0))
         return reach
 
     def largest_safe_u(self, margin: float = 0.005, tolerance: float = 0.02) -> float:
