@@ -29,8 +29,9 @@ import pinocchio as pin
 
 from openup_ompl._resources import data_dir
 from openup_ompl.exceptions import ConfigError
+from openup_ompl.meshes import revolution_mesh, write_obj
 from openup_ompl.robot import Robot
-from openup_ompl.scene import SHAPES, Problem, Shape, load_scene
+from openup_ompl.scene import Problem, Shape, load_scene
 from openup_ompl.study.geometry import SUPPORT, HandSweep, shape_distance
 
 __all__ = [
@@ -143,8 +144,6 @@ def parse_families(names: list[str] | None, scene: str | Path | None = None) -> 
             raise ConfigError("family", name, f"a kind of {list(KINDS)} or 'all'")
         for r in robots:
             for k in kinds:
-                if k == "mesh" and "mesh" not in SHAPES:
-                    continue  # until scene.py reads mesh shapes; the report says so
                 families.append(Family(f"{r}-{k}", r, k))
     if not families:
         raise ConfigError("family", names, "at least one family or a --scene")
@@ -160,27 +159,6 @@ def _box(name: str, frame: _Frame, size: tuple[float, float, float], x: float = 
          y: float = 0.0, z: float | None = None, **physics: Any) -> Shape:  # fmt: skip
     z = size[2] / 2 if z is None else z
     return Shape(name, "box", frame.pose(x, y, z), size=np.asarray(size), **physics)
-
-
-def _lathe_obj(path: Path, radii: np.ndarray, height: float, segments: int = 16) -> Path:
-    """Write a closed surface of revolution (a bottle) as an OBJ centred at its middle."""
-    zs = np.linspace(-height / 2, height / 2, len(radii))
-    angles = np.linspace(0.0, 2 * math.pi, segments, endpoint=False)
-    lines = [f"v {r * math.cos(a):.6f} {r * math.sin(a):.6f} {z:.6f}"
-             for r, z in zip(radii, zs, strict=True) for a in angles]  # fmt: skip
-    lines += [f"v 0 0 {zs[0]:.6f}", f"v 0 0 {zs[-1]:.6f}"]
-    bottom, top = len(radii) * segments + 1, len(radii) * segments + 2
-    for i in range(len(radii) - 1):
-        for j in range(segments):
-            a, b = i * segments + j + 1, i * segments + (j + 1) % segments + 1
-            lines += [f"f {a} {b} {b + segments}", f"f {a} {b + segments} {a + segments}"]
-    last = (len(radii) - 1) * segments
-    for j in range(segments):
-        lines.append(f"f {bottom} {(j + 1) % segments + 1} {j + 1}")
-        lines.append(f"f {top} {last + j + 1} {last + (j + 1) % segments + 1}")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text("\n".join(lines) + "\n")
-    return path
 
 
 @dataclass
@@ -237,15 +215,22 @@ def _object(kind: str, draw: _Draw) -> tuple[Shape, float, float]:
 
 
 def _mesh_object(draw: _Draw) -> tuple[Shape, float, float]:
-    """A lathed bottle (body, shoulder, neck) written as an OBJ file."""
+    """A bottle (body, shoulder, neck) drawn as a profile of revolution, written as an OBJ
+    file (:func:`~openup_ompl.meshes.revolution_mesh`) centred on its middle."""
     if draw.mesh_dir is None:
         raise ConfigError("mesh_dir", None, "a directory for the mesh family's OBJ files")
     r, h = draw.radius(), draw.uniform(0.14, 0.18)
-    radii = np.array([r * 0.9, r, r, r * draw.uniform(0.8, 1.0), r * 0.5, r * 0.4])
+    shoulder, neck = r * draw.uniform(0.8, 1.0), r * draw.uniform(0.4, 0.5)
+    profile = np.array(
+        [[0.0, 0.0], [0.9 * r, 0.0], [r, 0.1 * h], [r, 0.55 * h], [shoulder, 0.7 * h],
+         [neck, 0.85 * h], [neck, h], [0.0, h]]
+    )  # fmt: skip
+    vertices, triangles = revolution_mesh(profile)
+    vertices = vertices - np.array([0.0, 0.0, h / 2])
+    draw.mesh_dir.mkdir(parents=True, exist_ok=True)
     name = f"bottle_{int(draw.rng.integers(1 << 30)):09d}.obj"
-    path = _lathe_obj(draw.mesh_dir / name, radii, h)
-    fields: dict[str, Any] = {"file": path, "scale": 1.0}
-    shape = Shape("bottle", "mesh", draw.frame.pose(0, 0, h / 2), mass=0.15, **fields)
+    path = write_obj(draw.mesh_dir / name, vertices, triangles, "openup-ompl study: a bottle")
+    shape = Shape("bottle", "mesh", draw.frame.pose(0, 0, h / 2), file=path, scale=1.0, mass=0.15)
     return shape, r, h
 
 
