@@ -1,4 +1,4 @@
-"""Command line: ``openup-ompl plan``, ``demo``, ``robustness``, ``benchmark`` and more.
+"""Command line: ``openup-ompl plan``, ``demo``, ``robustness``, ``study``, ``benchmark`` and more.
 
 Bad input ends with one line on stderr and exit status 2; a planner that finds no
 solution ends with its OMPL status on stderr and exit status 1. No plan file is written
@@ -466,6 +466,18 @@ def build_parser() -> argparse.ArgumentParser:
     )
     loop.add_argument("--quiet", action="store_true", help="no progress on stderr")
     loop.set_defaults(handler=_closed_loop_command)
+
+    from openup_ompl.study.cli import add_parser as add_study
+
+    add_study(
+        commands,
+        count=_count,
+        seed=_seed,
+        planner=_planner,
+        time_limit=_time_limit,
+        scheduler=_scheduler,
+        out_path=_out_path,
+    )
     return parser
 
 
