@@ -145,12 +145,17 @@ def _execute(
     except (PlanningFailed, InvalidProblem) as error:
         return {"planned": False, "held": False, "cause": "plan failed", "error": str(error)}
     trial = physics_judge(setup, plan, truth)
+    # A rollout that simulates movable neighbours reports their disturbance; one that
+    # does not (static obstacles) leaves it unknown.
+    reported = "neighbour_moved" in trial
+    disturbed = bool(trial["neighbour_moved"] or trial["neighbour_tipped"]) if reported else None
     return {
         "planned": True,
         "held": bool(trial["success"]),
         "cause": trial.get("cause"),
         "obstacle_contact": bool(trial.get("collision")),
-        "disturbed": trial.get("disturbed"),
+        "disturbed": disturbed,
+        "neighbour_touched": trial.get("neighbour_touched"),
         "touched": bool(trial.get("touched")),
         "verdict": trial.get("verdict"),
     }
