@@ -178,6 +178,7 @@ def _write_robot(plan: Plan) -> dict[str, Any]:
     spec = robot.spec
     return {
         "name": spec.name,
+        "file": str(spec.path),
         "urdf": str(robot.urdf),
         "srdf": None if robot.srdf is None else str(robot.srdf),
         "package_dirs": list(robot.package_dirs),

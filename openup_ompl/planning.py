@@ -344,6 +344,8 @@ class GraspPlanningSetup:
             "ik_calls": ik_calls - before[2],
             "waypoints": int(waypoints.shape[0]),
             "approach_states": approach,
+            "resolution": self.checker.resolution,  # [m] what a re-validation checks with
+            "padding": self.checker.world.padding,  # [m]
         }
         if isinstance(instance, IKBiRRT):
             stats.update(
