@@ -637,3 +637,14 @@ def test_mutated_execution_files_are_read_as_written_or_refused(
         )
 
     _run(check, mutations(execution_doc, toml=False), examples)
+
+
+# -- what the properties found, each kept as a test -------------------------------------
+
+
+def test_a_robot_description_that_is_not_text_is_refused(panda_toml: str, tmp_path: Path) -> None:
+    """``description = false`` was read as the text "False"; it is refused, named."""
+    path = tmp_path / "panda.toml"
+    path.write_text(re.sub(r"^description = .*$", "description = false", panda_toml, flags=re.M))
+    with pytest.raises(ConfigError, match="description"):
+        RobotSpec.from_file(path)
