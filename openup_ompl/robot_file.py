@@ -210,9 +210,12 @@ class RobotSpec:
         convex = raw.get("convex", True)
         if not isinstance(convex, bool):
             raise ConfigError(f"{where}: convex", convex, "true or false")
+        description = raw.get("description", "")
+        if not isinstance(description, str):
+            raise ConfigError(f"{where}: description", description, "a string")
         return cls(
             name=_toml.string(_toml.require(raw, "name", where), f"{where}: name"),
-            description=str(raw.get("description", "")),
+            description=description,
             path=path,
             urdf=resolve_path(
                 _toml.string(_toml.require(raw, "urdf", where), f"{where}: urdf"),
