@@ -98,7 +98,8 @@ def test_a_cylinder_is_read_along_the_superquadric_axis_that_fits_it(column: int
     starts from every principal axis) is estimated upright: its axis is read from the
     half-sizes, not from the superquadric's z (which laid the Panda's can on its side in
     10 of 20 noisy views, and its grasp pose with it)."""
-    from openup_ompl.perception.superquadric import N_PARAMETERS, Superquadric, SuperquadricFit
+    from openup_ompl.perception.covariance import SuperquadricFit
+    from openup_ompl.perception.superquadric import N_PARAMETERS, Superquadric
 
     nominal = Shape("can", "cylinder", np.array([0.6, 0.0, 0.06, 0, 0, 0, 1.0]), radius=0.03,
                     length=0.12)  # fmt: skip
@@ -617,7 +618,8 @@ def test_a_can_as_long_as_it_is_wide_is_read_upright():
     box-like superquadric with its x vertical (half-sizes 33, 25, 31.6 mm) was read lying
     on its side. The scene's axis breaks the tie; a superquadric round about its z
     (e2 >= 0.5, flat ends) is read along its z."""
-    from openup_ompl.perception.superquadric import N_PARAMETERS, Superquadric, SuperquadricFit
+    from openup_ompl.perception.covariance import SuperquadricFit
+    from openup_ompl.perception.superquadric import N_PARAMETERS, Superquadric
 
     nominal = Shape("can", "cylinder", np.array([0.75, -0.2, 0.033, 0, 0, 0, 1.0]), radius=0.033,
                     length=0.066)  # fmt: skip

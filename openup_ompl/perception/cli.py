@@ -50,8 +50,8 @@ def perceive_command(args: argparse.Namespace) -> int:
     perception = perceive(problem, camera, noise, rng=np.random.default_rng(args.seed))
     paths = write_perception(problem, perception, args.out)
     assert problem.object is not None
-    error = (perception.fit.superquadric.position - problem.object.pose[:3]) * 1e3
-    sigma = np.sqrt(np.diag(perception.fit.position_covariance)) * 1e3
+    error = (perception.pose[:3] - problem.object.pose[:3]) * 1e3
+    sigma = np.sqrt(np.diag(perception.position_covariance)) * 1e3
     print(
         f"{problem.object.name}: {perception.fit.points} object points"
         f" ({perception.cloud.dropped} dropped at grazing"
