@@ -417,6 +417,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     perceive.add_argument("--seed", type=_seed, default=1, help="seed of the sensor noise")
     perceive.add_argument("--out", type=_out_path, required=True, help="output directory")
+    from openup_ompl.perception.cli import add_error_arguments
+
+    add_error_arguments(perceive)
     perceive.set_defaults(handler=_perceive_command)
 
     loop = commands.add_parser(
@@ -465,6 +468,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--out", type=_out_path, default=Path("openup-closed-loop"), help="output directory"
     )
     loop.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    add_error_arguments(loop)
     loop.set_defaults(handler=_closed_loop_command)
     return parser
 

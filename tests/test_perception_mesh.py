@@ -14,6 +14,7 @@ import pytest
 import openup_ompl as ou
 from openup_ompl.__main__ import main
 from openup_ompl.perception import NoiseOptions, perceive
+from openup_ompl.perception.extrinsic import PerceptionOptions
 from openup_ompl.perception.nominal import nominal_of
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -51,7 +52,12 @@ def test_a_mesh_symmetry_is_read_from_its_hull(bottle: ou.Problem) -> None:
 def test_a_mesh_object_is_perceived_within_millimetres(bottle: ou.Problem, noise: float) -> None:
     """The bottle's estimate lies within 3 mm of the truth, upright, with a finite
     covariance that has no variance about its axis of revolution."""
-    seen = perceive(bottle, noise=NoiseOptions(scale=noise), rng=np.random.default_rng(3))
+    seen = perceive(
+        bottle,
+        noise=NoiseOptions(scale=noise),
+        rng=np.random.default_rng(3),
+        options=PerceptionOptions.exact(),
+    )
     assert bottle.object is not None
     assert np.linalg.norm(seen.pose[:3] - bottle.object.pose[:3]) < 0.003
     rotation = pin.XYZQUATToSE3(seen.pose).rotation
@@ -68,8 +74,9 @@ def test_a_mesh_object_is_perceived_within_millimetres(bottle: ou.Problem, noise
 def test_perceive_cli_writes_a_mesh_scene(tmp_path: Path) -> None:
     """``openup-ompl perceive`` on the bottle scene writes a pose and covariances."""
     assert main(["perceive", str(BOTTLE_SCENE), "--seed", "2", "--out", str(tmp_path)]) == 0
+    # The default calibration errors: within their 5 mm and 0.5 degree (at 0.8 m) sigmas.
     summary = json.loads((tmp_path / "perception.json").read_text())
     for key in ("pose", "u", "position_covariance", "rotation_covariance"):
         assert key in summary
-    assert np.linalg.norm(np.subtract(summary["pose"][:3], summary["true_pose"][:3])) < 0.003
+    assert np.linalg.norm(np.subtract(summary["pose"][:3], summary["true_pose"][:3])) < 0.04
     assert ou.load_scene(tmp_path / "perceived.toml").object.shape == "mesh"  # type: ignore[union-attr]

@@ -4,6 +4,7 @@ rotation."""
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Callable
 
@@ -13,6 +14,7 @@ import pinocchio as pin
 from openup_ompl.perception.covariance import SuperquadricFit
 from openup_ompl.perception.nominal import Nominal, nominal_of
 from openup_ompl.perception.registration import register_hull
+from openup_ompl.perception.superquadric import ROTATION
 from openup_ompl.scene import Shape
 
 __all__ = ["estimate", "estimated_pose", "symmetric_turn"]
@@ -33,13 +35,18 @@ def estimate(
     points: np.ndarray,
     weights: Callable[[np.ndarray, np.ndarray], np.ndarray] | None,
     support: float | None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The object's pose and the covariances [m^2, rad^2] of its position and rotation
-    (world frame): the superquadric's for a primitive, a mesh's hull registered from it
-    (:mod:`~openup_ompl.perception.registration`)."""
-    pose = estimated_pose(fit, shape)
+    size_sigma: float = 0.0,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The object's pose and the ``(6, 6)`` covariance of its position [m] and a small
+    rotation [rad] (world frame): the superquadric's for a primitive, with a turn about a
+    symmetry axis of the shape held (it moves no surface), or a mesh's hull registered
+    from it (:mod:`~openup_ompl.perception.registration`). ``size_sigma`` [m]: how well
+    the scene's dimensions are known (see
+    :meth:`~openup_ompl.perception.covariance.SuperquadricFit.pose_covariance`; 0: the
+    superquadric's sizes free)."""
+    pose, fixed = _fitted_pose(fit, shape)
     if shape.shape != "mesh":
-        return pose, fit.position_covariance, fit.rotation_covariance
+        return pose, fit.pose_covariance(fixed, size_sigma, _size_groups(fixed))
     from openup_ompl.meshes import hull_points
 
     assert shape.file is not None
@@ -60,9 +67,19 @@ def estimate(
         rotation = symmetric_turn(placement.rotation[:, nominal.axis], reference, nominal)
         centre = placement.act(nominal.centre)
         placement = pin.SE3(rotation, centre - rotation @ nominal.centre)
-    pose = np.asarray(pin.SE3ToXYZQUAT(placement), dtype=float)
-    covariance = registered.covariance
-    return pose, covariance[:3, :3].copy(), covariance[3:, 3:].copy()
+    return np.asarray(pin.SE3ToXYZQUAT(placement), dtype=float), registered.covariance
+
+
+def _size_groups(fixed: list[int]) -> list[list[int]]:
+    """The superquadric's half-sizes that err together, from the rotations held about the
+    shape's symmetry axes (:func:`_fitted_pose`): the two radii about an axis of
+    revolution, a ball's three."""
+    if len(fixed) == 3:
+        return [[0, 1, 2]]
+    if len(fixed) == 1:
+        column = fixed[0] - ROTATION.start
+        return [[k for k in range(3) if k != column], [column]]
+    return [[0], [1], [2]]
 
 
 def estimated_pose(fit: SuperquadricFit, nominal: Shape) -> np.ndarray:
@@ -78,6 +95,13 @@ def estimated_pose(fit: SuperquadricFit, nominal: Shape) -> np.ndarray:
     (:class:`~openup_ompl.perception.nominal.Nominal`), which a mesh's file may place away
     from its origin.
     """
+    return _fitted_pose(fit, nominal)[0]
+
+
+def _fitted_pose(fit: SuperquadricFit, nominal: Shape) -> tuple[np.ndarray, list[int]]:
+    """:func:`estimated_pose`, and the superquadric's rotation parameters (indices in
+    :data:`~openup_ompl.perception.superquadric.PARAMETERS`) about the shape's symmetry
+    axes."""
     sq = fit.superquadric
     rotation = sq.rotation
     shape = nominal_of(nominal)
@@ -88,22 +112,48 @@ def estimated_pose(fit: SuperquadricFit, nominal: Shape) -> np.ndarray:
             sq.sizes, sq.exponents, shape.radius, float(shape.half[k]), rotation.T @ reference[:, k]
         )
         rotation = symmetric_turn(rotation[:, column], reference, shape)
+        fixed = [ROTATION.start + column]
     elif shape.symmetry == "all":
         rotation = reference
+        fixed = list(range(ROTATION.start, ROTATION.stop))
     else:
-        order = np.argsort(sq.sizes)[np.argsort(np.argsort(shape.half))]
-        permuted = rotation[:, order]
-        best, best_angle = permuted, np.inf
-        for signs in ((1, 1, 1), (1, -1, -1), (-1, 1, -1), (-1, -1, 1)):
-            candidate = permuted * np.array(signs, dtype=float)
+        fixed = []
+        rotation = _box_rotation(sq.sizes, rotation, shape.half, reference)
+    position = sq.position - rotation @ shape.centre
+    return np.asarray(pin.SE3ToXYZQUAT(pin.SE3(rotation, position)), dtype=float), fixed
+
+
+#: Two half-sizes within this ratio are interchangeable when a box's (or another
+#: shape's) axes are matched to the fit's: a square section's two sides.
+SAME_SIZE = 1.15
+
+
+def _box_rotation(
+    sizes: np.ndarray, rotation: np.ndarray, half: np.ndarray, reference: np.ndarray
+) -> np.ndarray:
+    """The fitted frame's axes matched to a shape of ``half`` extents, nearest the
+    ``reference`` orientation: the axes permuted so that the fitted half-sizes best match
+    the nominal ones (by log ratio; any permutation within :data:`SAME_SIZE` of the best
+    counts as a match: the noise orders a square section's equal sides at random), and
+    flipped; of those proper rotations, the nearest the reference."""
+    costs = {
+        order: sum(abs(math.log(sizes[order[j]] / half[j])) for j in range(3))
+        for order in itertools.permutations(range(3))
+    }
+    best_cost = min(costs.values())
+    best, best_angle = rotation, np.inf
+    for order, cost in costs.items():
+        if cost > best_cost + 2 * math.log(SAME_SIZE):
+            continue
+        permuted = rotation[:, list(order)]
+        for signs in itertools.product((1.0, -1.0), repeat=3):
+            candidate = permuted * np.array(signs)
             if np.linalg.det(candidate) < 0:
-                candidate = candidate * np.array([1.0, 1.0, -1.0])
+                continue
             angle = float(np.linalg.norm(pin.log3(reference.T @ candidate)))
             if angle < best_angle:
                 best, best_angle = candidate, angle
-        rotation = best
-    position = sq.position - rotation @ shape.centre
-    return np.asarray(pin.SE3ToXYZQUAT(pin.SE3(rotation, position)), dtype=float)
+    return np.asarray(best)
 
 
 def symmetric_turn(axis: np.ndarray, reference: np.ndarray, shape: Nominal) -> np.ndarray:

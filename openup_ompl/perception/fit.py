@@ -27,7 +27,12 @@ import numpy as np
 
 from openup_ompl._toml import is_integer, is_number
 from openup_ompl.exceptions import ConfigError, TooFewPoints
-from openup_ompl.perception.covariance import COVARIANCES, SuperquadricFit, parameter_covariance
+from openup_ompl.perception.covariance import (
+    COVARIANCES,
+    SuperquadricFit,
+    measurement_rows,
+    parameter_covariance,
+)
 from openup_ompl.perception.superquadric import (
     N_PARAMETERS,
     _angles,
@@ -350,8 +355,9 @@ def fit_superquadric(
     residuals = _residuals(x, *args)
     jacobian = _jacobian(x, *args)
     n = points.shape[0]
+    rows = measurement_rows(residuals, n, _free_space_rows(silhouette))
     covariance, unobservable = parameter_covariance(
-        jacobian, residuals, n, _free_space_rows(silhouette), options.covariance
+        jacobian[rows], residuals[rows], n, options.covariance
     )
     unweighted = residuals[:n] / weights if weights is not None else residuals[:n]
     return SuperquadricFit(
@@ -362,6 +368,9 @@ def fit_superquadric(
         points=n,
         evaluations=evaluations,
         unobservable=unobservable,
+        jacobian=jacobian[rows],
+        residuals=residuals[rows],
+        kind=options.covariance,
     )
 
 

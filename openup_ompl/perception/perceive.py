@@ -26,12 +26,20 @@ from openup_ompl.exceptions import (
 from openup_ompl.perception.camera import (
     CameraOptions,
     DepthCamera,
+    DepthView,
     camera_of_scene,
 )
 from openup_ompl.perception.covariance import SuperquadricFit
 from openup_ompl.perception.estimate import estimate, estimated_pose
+from openup_ompl.perception.extrinsic import (
+    CameraError,
+    PerceptionOptions,
+    draw_camera_error,
+    extrinsic_covariance,
+)
 from openup_ompl.perception.fit import FitOptions, fit_superquadric
 from openup_ompl.perception.noise import NoiseOptions, PointCloud, noisy_cloud, normal_sigma
+from openup_ompl.perception.nominal import nominal_of
 from openup_ompl.perception.uncertainty import u_from_covariance
 from openup_ompl.perception.view import checked_view, occluded_outline, silhouette_of
 from openup_ompl.scene import Problem
@@ -60,10 +68,11 @@ class Perception:
         u: The hand law's ``u`` from the covariance.
         camera: Camera position [m].
         target: The point [m] it looked at.
-        position_covariance: ``(3, 3)`` covariance [m^2] of the estimated position, world
-            frame (the fit's; a mesh's registration's).
-        rotation_covariance: ``(3, 3)`` covariance [rad^2] of a small world-frame rotation
-            of the estimate (zero about a symmetry axis of a mesh).
+        pose_covariance: ``(6, 6)`` covariance of the estimate's position [m] and a small
+            world-frame rotation [rad]: the fit's (a mesh's registration's) plus the
+            camera's calibration errors' (:mod:`~openup_ompl.perception.extrinsic`), with
+            no variance about a symmetry axis of the shape.
+        camera_error: The view's calibration errors (drawn; the truth, for studies).
     """
 
     cloud: PointCloud
@@ -72,8 +81,18 @@ class Perception:
     u: float
     camera: np.ndarray
     target: np.ndarray
-    position_covariance: np.ndarray
-    rotation_covariance: np.ndarray
+    pose_covariance: np.ndarray
+    camera_error: CameraError
+
+    @property
+    def position_covariance(self) -> np.ndarray:
+        """``(3, 3)`` covariance [m^2] of the estimated position, world frame."""
+        return self.pose_covariance[:3, :3].copy()
+
+    @property
+    def rotation_covariance(self) -> np.ndarray:
+        """``(3, 3)`` covariance [rad^2] of a small world-frame rotation of the estimate."""
+        return self.pose_covariance[3:, 3:].copy()
 
     def summary(self) -> dict[str, Any]:
         """The estimate as plain JSON-ready values."""
@@ -90,8 +109,14 @@ class Perception:
             "residual_rms": self.fit.residual_rms,
             "position_covariance": self.position_covariance.tolist(),
             "rotation_covariance": self.rotation_covariance.tolist(),
+            "pose_covariance": self.pose_covariance.tolist(),
             "camera": self.camera.tolist(),
             "target": self.target.tolist(),
+            "camera_error": {
+                "position": self.camera_error.position.tolist(),
+                "rotation": self.camera_error.rotation.tolist(),
+                "depth_bias": self.camera_error.depth_bias,
+            },
         }
 
 
@@ -111,6 +136,7 @@ def perceive(
     depth_camera: DepthCamera | None = None,
     silhouette: bool = True,
     weighted: bool = True,
+    options: PerceptionOptions | None = None,
 ) -> Perception:
     """Look at the scene's object once, fit it, and choose ``u``.
 
@@ -127,6 +153,9 @@ def perceive(
             (:class:`~openup_ompl.perception.fit.Silhouette`), and the surface under the
             object as its floor (it stands on the table, not through it).
         weighted: Weight the fit by the sensor's noise model (:func:`normal_sigma`).
+        options: The camera's calibration errors (drawn from ``rng`` after the sensor
+            noise, applied to the cloud and added to the covariance) and the estimator's
+            restarts; ``PerceptionOptions.exact()``: the sensor noise alone.
 
     Raises:
         ConfigError: ``depth_camera`` was built on another object (or pose) than the
@@ -144,37 +173,64 @@ def perceive(
             :data:`DEGENERATE_FACTOR` of its lower bound).
     """
     noise = noise or NoiseOptions()
+    options = options or PerceptionOptions()
     rng = rng if rng is not None else np.random.default_rng(0)
     cam = _camera(problem, camera, depth_camera)
     view = cam.render()
     cloud = noisy_cloud(view, noise, rng)
+    error = draw_camera_error(options, rng)
     support = checked_view(problem, cam, view, cloud, noise, silhouette)
+    cloud, view, support = _as_believed(cloud, view, error, support)
     shape = silhouette_of(view, noise, cam.options, support) if silhouette else None
-    weights = normal_sigma(cam.position, cam.rotation, noise) if weighted else None
+    weights = normal_sigma(view.position, view.rotation, noise) if weighted else None
     result = fit_superquadric(cloud.points, fit, shape, weights)
     bound = (fit or FitOptions()).min_size
     if float(np.min(result.superquadric.sizes)) <= DEGENERATE_FACTOR * bound:
         raise DegenerateFit(result.superquadric.sizes.tolist(), bound)
     assert problem.object is not None
-    pose, position_covariance, rotation_covariance = estimate(
-        result, problem.object, cloud.points, weights, support
+    pose, covariance = estimate(
+        result, problem.object, cloud.points, weights, support, options.size_sigma
     )
+    covariance = covariance + extrinsic_covariance(options, view.position, view.rotation, pose[:3])
+    rotation = pin.XYZQUATToSE3(pose).rotation
+    covariance = without_turns(covariance, nominal_of(problem.object).symmetry_axes(rotation))
     u = u_from_covariance(
-        position_covariance,
-        rotation_covariance,
-        problem,
-        sizes=result.superquadric.sizes,
+        covariance[:3, :3],
+        covariance[3:, 3:],
+        at_estimate(problem, pose),
+        cross_covariance=covariance[:3, 3:],
     )
     return Perception(
-        cloud,
-        result,
-        pose,
-        u,
-        cam.position.copy(),
-        cam.target.copy(),
-        position_covariance,
-        rotation_covariance,
+        cloud, result, pose, u, view.position.copy(), cam.target.copy(), covariance, error
     )
+
+
+def _as_believed(
+    cloud: PointCloud, view: DepthView, error: CameraError, support: float | None
+) -> tuple[PointCloud, DepthView, float | None]:
+    """The cloud, the view's camera pose and the support's height as the robot has them:
+    placed by the camera's believed pose, depths offset by the bias (:class:`CameraError`)."""
+    position, rotation = view.position, view.rotation
+    believed = dataclasses.replace(
+        cloud,
+        points=error.apply(cloud.points, position, rotation),
+        scene_points=error.apply(cloud.scene_points, position, rotation),
+    )
+    if support is not None:
+        foot = np.append(cloud.points[:, :2].mean(axis=0), support)
+        support = error.move_height(foot, position, rotation)
+    camera, turned = error.believed(position, rotation)
+    return believed, dataclasses.replace(view, position=camera, rotation=turned), support
+
+
+def without_turns(covariance: np.ndarray, axes: np.ndarray) -> np.ndarray:
+    """A ``(6, 6)`` pose covariance with no rotation about the unit world ``axes`` (rows):
+    a turn about a symmetry axis of the shape moves none of its surface."""
+    if axes.size == 0:
+        return covariance
+    keep = np.eye(6)
+    keep[3:, 3:] -= axes.T @ axes
+    return np.asarray(keep @ covariance @ keep.T)
 
 
 def _camera(
