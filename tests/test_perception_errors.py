@@ -154,3 +154,19 @@ def test_perceive_cli_refuses_a_bad_sigma_in_one_line(
     assert status == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "camera_angle_sigma" in err[0]
+
+
+def test_restarts_report_the_spread_of_u(lwa3_can: ou.Problem) -> None:
+    """Five fits (the points and four bootstrap resamples) give five u values, their
+    median as u, and one fit gives a spread of 0."""
+    options = PerceptionOptions.exact()
+    one = perceive(lwa3_can, rng=np.random.default_rng(1), options=options)
+    assert one.u_fits == (one.u,) and one.u_spread == 0.0
+    five = perceive(
+        lwa3_can,
+        rng=np.random.default_rng(1),
+        options=dataclasses.replace(options, restarts=5),
+    )
+    assert len(five.u_fits) == 5 and five.u == pytest.approx(float(np.median(five.u_fits)))
+    assert five.u_fits[0] == pytest.approx(one.u)  # the first fit is the points'
+    assert five.u_spread == pytest.approx(max(five.u_fits) - min(five.u_fits))

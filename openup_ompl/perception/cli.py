@@ -56,6 +56,14 @@ def add_error_arguments(parser: argparse.ArgumentParser) -> None:
         help="standard deviation [m] of a depth offset common to a view's pixels"
         f" (default {default.depth_bias_sigma:g})",
     )
+    parser.add_argument(
+        "--restarts",
+        type=int,
+        default=default.restarts,
+        metavar="N",
+        help="fits per view: the points, then N-1 bootstrap resamples; u is their median"
+        f" and their spread is reported (default {default.restarts})",
+    )
 
 
 def perception_options(args: argparse.Namespace) -> Any:
@@ -67,6 +75,7 @@ def perception_options(args: argparse.Namespace) -> Any:
         camera_position_sigma=args.camera_position_sigma,
         camera_angle_sigma=args.camera_angle_sigma,
         depth_bias_sigma=args.depth_bias_sigma,
+        restarts=args.restarts,
     )
 
 
@@ -112,6 +121,11 @@ def perceive_command(args: argparse.Namespace) -> int:
         f" incidence); position error {np.round(error, 1).tolist()} mm, sigma"
         f" {np.round(sigma, 1).tolist()} mm; mean residual"
         f" {perception.fit.mean_residual * 1e3:.2f} mm; u = {perception.u:.3f}"
+        + (
+            f" (median of {len(perception.u_fits)} fits, spread {perception.u_spread:.3f})"
+            if len(perception.u_fits) > 1
+            else ""
+        )
     )
     try:
         from openup_ompl.perception.figure import plot_perception

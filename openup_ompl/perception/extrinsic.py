@@ -19,6 +19,7 @@ axis) and turned by ``dtheta``: the pose's covariance gains ``sigma_p^2 I + sigm
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -55,7 +56,7 @@ class PerceptionOptions:
     camera_angle_sigma: float = 0.5  # [deg]
     depth_bias_sigma: float = 0.002  # [m]
     size_sigma: float = 0.002  # [m]
-    restarts: int = 1
+    restarts: int = 5
 
     def __post_init__(self) -> None:
         limits = {
@@ -72,17 +73,17 @@ class PerceptionOptions:
 
     @classmethod
     def exact(cls) -> PerceptionOptions:
-        """A perfectly calibrated camera: only the sensor noise (the error model before
-        these options existed)."""
-        return cls(camera_position_sigma=0.0, camera_angle_sigma=0.0, depth_bias_sigma=0.0)
+        """A perfectly calibrated camera and one fit: only the sensor noise (the error
+        model before these options existed)."""
+        return cls(
+            camera_position_sigma=0.0, camera_angle_sigma=0.0, depth_bias_sigma=0.0, restarts=1
+        )
 
     @classmethod
     def legacy(cls) -> PerceptionOptions:
         """The sensor noise alone and the shape's parameters free in the covariance: the
         estimator before these options existed."""
-        return cls(
-            camera_position_sigma=0.0, camera_angle_sigma=0.0, depth_bias_sigma=0.0, size_sigma=0.0
-        )
+        return dataclasses.replace(cls.exact(), size_sigma=0.0)
 
 
 @dataclass(frozen=True)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -22,6 +23,7 @@ from openup_ompl.exceptions import (
     ConfigError,
     DegenerateFit,
     InvalidProblem,
+    PerceptionError,
 )
 from openup_ompl.perception.camera import (
     CameraOptions,
@@ -37,7 +39,7 @@ from openup_ompl.perception.extrinsic import (
     draw_camera_error,
     extrinsic_covariance,
 )
-from openup_ompl.perception.fit import FitOptions, fit_superquadric
+from openup_ompl.perception.fit import FitOptions, Silhouette, fit_superquadric
 from openup_ompl.perception.noise import NoiseOptions, PointCloud, noisy_cloud, normal_sigma
 from openup_ompl.perception.nominal import nominal_of
 from openup_ompl.perception.uncertainty import u_from_covariance
@@ -73,6 +75,8 @@ class Perception:
             camera's calibration errors' (:mod:`~openup_ompl.perception.extrinsic`), with
             no variance about a symmetry axis of the shape.
         camera_error: The view's calibration errors (drawn; the truth, for studies).
+        u_fits: ``u`` of each fit of the view (the points, then bootstrap resamples of
+            them: ``PerceptionOptions.restarts``); ``u`` is their median.
     """
 
     cloud: PointCloud
@@ -83,6 +87,12 @@ class Perception:
     target: np.ndarray
     pose_covariance: np.ndarray
     camera_error: CameraError
+    u_fits: tuple[float, ...] = ()
+
+    @property
+    def u_spread(self) -> float:
+        """Max minus min of :attr:`u_fits` (0 for one fit)."""
+        return float(max(self.u_fits) - min(self.u_fits)) if self.u_fits else 0.0
 
     @property
     def position_covariance(self) -> np.ndarray:
@@ -100,6 +110,8 @@ class Perception:
         return {
             "pose": [float(x) for x in self.pose],
             "u": self.u,
+            "u_fits": list(self.u_fits),
+            "u_spread": self.u_spread,
             "points": self.fit.points,
             "dropped": self.cloud.dropped,
             "sizes": sq.sizes.tolist(),
@@ -155,7 +167,8 @@ def perceive(
         weighted: Weight the fit by the sensor's noise model (:func:`normal_sigma`).
         options: The camera's calibration errors (drawn from ``rng`` after the sensor
             noise, applied to the cloud and added to the covariance) and the estimator's
-            restarts; ``PerceptionOptions.exact()``: the sensor noise alone.
+            bootstrap refits (their spread of ``u`` is reported; drawn from ``rng`` last);
+            ``PerceptionOptions.exact()``: the sensor noise alone.
 
     Raises:
         ConfigError: ``depth_camera`` was built on another object (or pose) than the
@@ -183,13 +196,49 @@ def perceive(
     cloud, view, support = _as_believed(cloud, view, error, support)
     shape = silhouette_of(view, noise, cam.options, support) if silhouette else None
     weights = normal_sigma(view.position, view.rotation, noise) if weighted else None
-    result = fit_superquadric(cloud.points, fit, shape, weights)
+    first = _fitted(problem, cloud.points, fit, shape, weights, support, view, options)
+    result, pose, covariance, u = first
+    fits = [u]
+    for _ in range(options.restarts - 1):
+        # A bootstrap resample of the points: the spread of u is the fit's own instability.
+        sample = cloud.points[rng.integers(0, cloud.points.shape[0], cloud.points.shape[0])]
+        try:
+            fits.append(_fitted(problem, sample, fit, shape, weights, support, view, options)[3])
+        except PerceptionError:
+            continue  # a resample that collapses says nothing of the view's u
+    return Perception(
+        cloud,
+        result,
+        pose,
+        float(np.median(fits)),
+        view.position.copy(),
+        cam.target.copy(),
+        covariance,
+        error,
+        tuple(fits),
+    )
+
+
+def _fitted(
+    problem: Problem,
+    points: np.ndarray,
+    fit: FitOptions | None,
+    shape: Silhouette | None,
+    weights: Callable[[np.ndarray, np.ndarray], np.ndarray] | None,
+    support: float | None,
+    view: DepthView,
+    options: PerceptionOptions,
+) -> tuple[SuperquadricFit, np.ndarray, np.ndarray, float]:
+    """One fit of ``points``: the superquadric, the object's pose, its ``(6, 6)``
+    covariance (the fit's, the calibration errors', no turn about a symmetry axis) and
+    ``u``."""
+    result = fit_superquadric(points, fit, shape, weights)
     bound = (fit or FitOptions()).min_size
     if float(np.min(result.superquadric.sizes)) <= DEGENERATE_FACTOR * bound:
         raise DegenerateFit(result.superquadric.sizes.tolist(), bound)
     assert problem.object is not None
     pose, covariance = estimate(
-        result, problem.object, cloud.points, weights, support, options.size_sigma
+        result, problem.object, points, weights, support, options.size_sigma
     )
     covariance = covariance + extrinsic_covariance(options, view.position, view.rotation, pose[:3])
     rotation = pin.XYZQUATToSE3(pose).rotation
@@ -200,9 +249,7 @@ def perceive(
         at_estimate(problem, pose),
         cross_covariance=covariance[:3, 3:],
     )
-    return Perception(
-        cloud, result, pose, u, view.position.copy(), cam.target.copy(), covariance, error
-    )
+    return result, pose, covariance, u
 
 
 def _as_believed(
