@@ -118,6 +118,13 @@ class Parser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # type: ignore[override]
         self.exit(2, f"{self.prog}: error: {message}\n")
 
+    def _get_values(self, action: argparse.Action, arg_strings: list[str]) -> Any:
+        # ``--flag=--`` reaches an option as ["--"], which argparse strips to no value at
+        # all: ``--seed=--`` became ``[]`` (a traceback), ``--u=--`` the default sweep.
+        if action.option_strings and arg_strings == ["--"] and action.nargs != 0:
+            self.error(f"argument {'/'.join(action.option_strings)}: expected a value, got '--'")
+        return super()._get_values(action, arg_strings)
+
 
 def _writable(path: Path, nearest: Path) -> None:
     """Refuse ``path`` when its nearest existing directory ``nearest`` takes no new file
