@@ -85,11 +85,8 @@ def write_atomic(path: str | Path, text: str) -> Path:
     return path
 
 
-#: The largest file the package reads [bytes]: 256 MiB. The largest written by the
-#: package measured 50 MB (an ``execution.json`` with the frames of a 214,200-row plan,
-#: whose plan file was 40 MB; a default plan of the shipped scenes is under 1 MB). A
-#: file beyond it, or a device such as ``/dev/zero``, was read whole into memory (23 GB
-#: before the process was killed).
+#: The largest file the package reads [bytes]: 256 MiB, several times the largest file it
+#: writes; without a bound a device such as ``/dev/zero`` was read whole into memory.
 MAX_FILE_BYTES = 256 * 2**20
 
 _KINDS = (
@@ -181,8 +178,8 @@ def json_safe(value: Any, digits: int | None = None) -> Any:
 
 def json_with_rows(data: dict[str, Any], keys: tuple[str, ...]) -> str:
     """``data`` as indented JSON text, the lists of number rows at ``keys`` written one row
-    a line (by the C encoder: the indented encoder is pure Python and took 0.1 s for a
-    plan of 2400 rows, a third of ``openup-ompl plan``'s own work)."""
+    a line (by the C encoder: the indented encoder is pure Python, slow on a plan's
+    thousands of rows)."""
     rows = {key: data[key] for key in keys}
     marks = {key: f"@@{key}@@" for key in rows}
     text = json.dumps({**data, **marks}, indent=1, allow_nan=False)

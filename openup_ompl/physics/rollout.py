@@ -385,7 +385,9 @@ def execute_plan(
     ``seed`` draws the object's jitter (``PhysicsOptions.object_jitter``). ``truth``, a
     scene or a shape, puts the true object in place of the plan's
     (:func:`~openup_ompl.truth.with_true_object`): a perceived plan against the true pose,
-    ``offset`` then displacing the true object.
+    ``offset`` then displacing the true object. The path is not re-validated against its
+    scene here (``openup-ompl execute`` does it first:
+    :func:`~openup_ompl.revalidate.revalidate_plan`).
 
     Raises:
         ConfigError: A non-finite offset; a file that is not ``openup-plan/1`` or fails
