@@ -42,6 +42,7 @@ from openup_ompl.grasp_quality import (
     force_closure,
     positively_spans,
 )
+from openup_ompl.meshes import hull_points
 from openup_ompl.motion_bound import joint_weight
 from openup_ompl.scene import Problem, Shape
 
@@ -398,12 +399,16 @@ def close_hand(
 
 
 def object_axis(shape: Shape) -> np.ndarray | None:
-    """The object's long axis in the world frame: a cylinder's z, a box's longest side;
-    ``None`` for a sphere."""
+    """The object's long axis in the world frame: a cylinder's z, a box's longest side,
+    a mesh's longest bounding-box side (in its file's frame); ``None`` for a sphere."""
     rotation = shape.placement.rotation
     if shape.shape == "cylinder":
         return np.array(rotation[:, 2])
     if shape.shape == "box":
         assert shape.size is not None
         return np.array(rotation[:, int(np.argmax(shape.size))])
+    if shape.shape == "mesh":
+        assert shape.file is not None and shape.scale is not None
+        points = hull_points(shape.file, shape.scale)
+        return np.array(rotation[:, int(np.argmax(np.ptp(points, axis=0)))])
     return None

@@ -18,11 +18,17 @@ from openup_ompl import _toml
 from openup_ompl._resources import data_dir
 from openup_ompl.exceptions import ConfigError
 from openup_ompl.hand_law import TABLE_FIELDS, HandLaw
+from openup_ompl.meshes import convex_geometry, hull_points
 from openup_ompl.robot import Robot, find_robot_file, load_robot
 
-SHAPES = ("box", "cylinder", "sphere")
-#: The dimensions each shape takes [m].
-SHAPE_KEYS = {"box": ("size",), "cylinder": ("radius", "length"), "sphere": ("radius",)}
+SHAPES = ("box", "cylinder", "sphere", "mesh")
+#: The dimensions each shape takes ([m]; a mesh's file and its uniform scale).
+SHAPE_KEYS = {
+    "box": ("size",),
+    "cylinder": ("radius", "length"),
+    "sphere": ("radius",),
+    "mesh": ("file", "scale"),
+}
 #: The keys of a scene file's top level and of its ``[grasp]`` table.
 #: ``[camera]`` is the simulated depth camera's (:mod:`openup_ompl.perception`, which
 #: validates it when it looks).
@@ -56,20 +62,45 @@ def _extent(value: Any, where: str) -> float:
     return _toml.number(value, where, low=MIN_EXTENT, high=_toml.MAX_EXTENT)
 
 
+def _mesh_file(value: Any, where: str) -> Path:
+    """A mesh's file path (checked to exist when its hull is read)."""
+    return Path(_toml.string(str(value) if isinstance(value, Path) else value, where)).expanduser()
+
+
+def _scale(value: Any, where: str) -> float:
+    """A mesh's uniform scale: a number in ``(0, 1e3]``."""
+    return _toml.number(value, where, low=MIN_EXTENT, high=1e3)
+
+
+_DIMENSION_CHECKS = {
+    "size": _box_size,
+    "radius": _extent,
+    "length": _extent,
+    "file": _mesh_file,
+    "scale": _scale,
+}
+
+
 @dataclass(frozen=True)
 class Shape:
-    """A box, cylinder or sphere fixed in the world frame.
+    """A box, cylinder, sphere or mesh placed in the world frame.
 
     Attributes:
         name: Unique name (used for its Coal geometry).
-        shape: ``"box"``, ``"cylinder"`` or ``"sphere"``.
+        shape: ``"box"``, ``"cylinder"``, ``"sphere"`` or ``"mesh"`` (the convex hull of
+            an OBJ or STL file's vertices, for planning, physics and the camera alike).
         pose: ``[x, y, z, qx, qy, qz, qw]`` of its centre in the world frame.
         size: Box full side lengths [m] (x, y, z).
         radius: Cylinder or sphere radius [m].
         length: Cylinder length [m] along its local z.
-        mass: Mass [kg] (the object only: it is a free body in physics).
+        file: A mesh's OBJ or STL file (absolute once read).
+        scale: A mesh's uniform scale (file units to metres; 1.0 when the file is in m).
+        mass: Mass [kg]: the object's, or a movable obstacle's (both free bodies in
+            physics).
         friction: Coulomb friction coefficient in physics (``None``: the simulator's
             default; the object's default is :data:`OBJECT_FRICTION`).
+        movable: An obstacle that physics simulates as a free body (a neighbour the hand
+            may push or tip); planning treats it as fixed, as every obstacle.
         raw: The table as written in the scene file (``{}`` for a shape built in code;
             plan files hold :meth:`to_table`, not this).
     """
@@ -80,41 +111,71 @@ class Shape:
     size: np.ndarray | None = None
     radius: float | None = None
     length: float | None = None
+    file: Path | None = None
+    scale: float | None = None
     mass: float | None = None
     friction: float | None = None
+    movable: bool = False
     raw: dict[str, Any] = field(default_factory=dict, compare=False)
 
     @classmethod
-    def from_table(cls, table: Any, where: str, *, is_object: bool = False) -> Shape:
-        """Read a scene's ``[object]`` (``is_object``) or ``[[obstacles]]`` table."""
+    def from_table(
+        cls, table: Any, where: str, *, is_object: bool = False, base: Path | None = None
+    ) -> Shape:
+        """Read a scene's ``[object]`` (``is_object``) or ``[[obstacles]]`` table.
+
+        Args:
+            table: The TOML (or plan file JSON) table.
+            where: Where it was read, for errors (``"scene.toml: obstacles[2]"``).
+            is_object: The object's table: it takes ``mass`` and ``friction`` with their
+                defaults; an obstacle takes them only when ``movable = true``.
+            base: The folder a mesh's relative ``file`` is read from (the scene file's;
+                the working directory when ``None``).
+
+        Returns:
+            The shape, its fields checked.
+
+        Raises:
+            ConfigError: Naming ``where`` and the key at fault.
+        """
         if not isinstance(table, dict):
             raise ConfigError(where, table, "a table with name, shape, pose and dimensions")
         shape = _toml.require(table, "shape", where)
         if shape not in SHAPES:
             raise ConfigError(f"{where}.shape", shape, f"one of {SHAPES}")
-        known = {"name", "shape", "pose", "mass", "friction", *SHAPE_KEYS[shape]}
+        movable = table.get("movable", False)
+        if is_object and "movable" in table:
+            raise ConfigError(f"{where}.movable", movable, "no movable key: the object is free")
+        if not isinstance(movable, bool):
+            raise ConfigError(f"{where}.movable", movable, "true or false")
+        known = {"name", "shape", "pose", "mass", "friction", "movable", *SHAPE_KEYS[shape]}
         _toml.check_keys(table, known, where)
-        physics: dict[str, Any] = {}
-        if is_object:
+        physics: dict[str, Any] = {"movable": movable}
+        if is_object or movable:
             physics["mass"] = _toml.number(
                 table.get("mass", OBJECT_MASS), f"{where}.mass", low=MIN_MASS
             )
         elif "mass" in table:
-            raise ConfigError(f"{where}.mass", table["mass"], "no mass: obstacles are fixed")
+            raise ConfigError(
+                f"{where}.mass", table["mass"], "no mass: a fixed obstacle (movable = true)"
+            )
         if "friction" in table or is_object:
             physics["friction"] = _toml.number(
                 table.get("friction", OBJECT_FRICTION), f"{where}.friction", low=0.0
             )
         name = _toml.string(_toml.require(table, "name", where), f"{where}.name")
         pose = _toml.pose(_toml.require(table, "pose", where), f"{where}.pose")
-        if shape == "box":
-            size = _box_size(_toml.require(table, "size", where), f"{where}.size")
-            return cls(name, shape, pose, size=size, raw=dict(table), **physics)
-        radius = _extent(_toml.require(table, "radius", where), f"{where}.radius")
-        if shape == "sphere":
-            return cls(name, shape, pose, radius=radius, raw=dict(table), **physics)
-        length = _extent(_toml.require(table, "length", where), f"{where}.length")
-        return cls(name, shape, pose, radius=radius, length=length, raw=dict(table), **physics)
+        dims: dict[str, Any] = {
+            key: _DIMENSION_CHECKS[key](_toml.require(table, key, where), f"{where}.{key}")
+            for key in SHAPE_KEYS[shape]
+            if key != "scale"
+        }
+        if shape == "mesh":
+            if base is not None and not dims["file"].is_absolute():
+                dims["file"] = base / dims["file"]
+            dims["scale"] = _scale(table.get("scale", 1.0), f"{where}.scale")
+            hull_points(dims["file"], dims["scale"], where)
+        return cls(name, shape, pose, **dims, **physics, raw=dict(table))
 
     def __post_init__(self) -> None:
         """Check a shape built in code (or by ``dataclasses.replace``) as :meth:`from_table`
@@ -135,7 +196,7 @@ class Shape:
             raise ConfigError(f"{where}.raw", self.raw, "a dict (the scene file's table)")
         checked: dict[str, Any] = {"pose": _toml.pose(_toml.shown(self.pose), f"{where}.pose")}
         keys = SHAPE_KEYS[self.shape]
-        for key, check in (("size", _box_size), ("radius", _extent), ("length", _extent)):
+        for key, check in _DIMENSION_CHECKS.items():
             value = getattr(self, key)
             if key in keys:
                 checked[key] = check(value, f"{where}.{key}")
@@ -143,6 +204,11 @@ class Shape:
                 raise ConfigError(
                     f"{where}.{key}", _toml.shown(value), f"None: a {self.shape} has {keys}"
                 )
+        if self.shape == "mesh":
+            checked["file"] = checked["file"].resolve()
+            hull_points(checked["file"], checked["scale"], where)
+        if not isinstance(self.movable, bool):
+            raise ConfigError(f"{where}.movable", self.movable, "True or False")
         if self.mass is not None:
             checked["mass"] = _toml.number(self.mass, f"{where}.mass", low=MIN_MASS)
         if self.friction is not None:
@@ -166,8 +232,12 @@ class Shape:
         table["pose"] = np.asarray(self.pose, dtype=float).tolist()
         for key in (*SHAPE_KEYS[self.shape], "mass", "friction"):
             value = getattr(self, key)
-            if value is not None:
+            if isinstance(value, Path):
+                table[key] = str(value)
+            elif value is not None:
                 table[key] = np.asarray(value, dtype=float).tolist()
+        if self.movable:
+            table["movable"] = True
         return table
 
     @property
@@ -189,6 +259,9 @@ class Shape:
         if self.shape == "box":
             assert self.size is not None
             return coal.Box(*(float(x) + 2 * padding for x in self.size))
+        if self.shape == "mesh":
+            assert self.file is not None and self.scale is not None
+            return convex_geometry(hull_points(self.file, self.scale), padding)
         assert self.radius is not None
         if self.shape == "sphere":
             return coal.Sphere(self.radius + padding)
@@ -251,13 +324,15 @@ class Problem:
         for i, shape in enumerate(self.obstacles):
             if not isinstance(shape, Shape):
                 raise ConfigError(f"problem.obstacles[{i}]", shape, "a Shape")
-            if shape.mass is not None:  # as a scene file's: a plan file would be refused
+            if shape.mass is not None and not shape.movable:  # as a scene file's
                 raise ConfigError(
-                    f"problem.obstacles[{i}].mass", shape.mass, "None: obstacles are fixed"
+                    f"problem.obstacles[{i}].mass", shape.mass, "None: a fixed obstacle"
                 )
         self.obstacles = list(self.obstacles)
         if self.object is not None and not isinstance(self.object, Shape):
             raise ConfigError("problem.object", self.object, "None or a Shape")
+        if self.object is not None and self.object.movable:
+            raise ConfigError("problem.object.movable", True, "False: the object is free")
         check_unique_names(self.obstacles, self.object, "problem: obstacle name")
 
     def source_files(self) -> list[Path]:
@@ -387,10 +462,11 @@ def load_scene(path: str | Path, robot: Robot | None = None) -> Problem:
     if not isinstance(obstacles_raw, list):
         raise ConfigError(f"{where}: obstacles", obstacles_raw, "an array of [[obstacles]] tables")
     obstacles = [
-        Shape.from_table(t, f"{where}: obstacles[{i}]") for i, t in enumerate(obstacles_raw)
+        Shape.from_table(t, f"{where}: obstacles[{i}]", base=path.parent)
+        for i, t in enumerate(obstacles_raw)
     ]
     obj = (
-        Shape.from_table(raw["object"], f"{where}: object", is_object=True)
+        Shape.from_table(raw["object"], f"{where}: object", is_object=True, base=path.parent)
         if "object" in raw
         else None
     )

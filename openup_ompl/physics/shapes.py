@@ -12,6 +12,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from openup_ompl.meshes import hull_points
+
 if TYPE_CHECKING:
     import mujoco
 
@@ -29,6 +31,8 @@ def mujoco_quat(pose: Sequence[float] | np.ndarray) -> np.ndarray:
 def _geom_type_and_size(shape: Shape) -> tuple[Any, list[float]]:
     import mujoco
 
+    if shape.shape == "mesh":
+        return mujoco.mjtGeom.mjGEOM_MESH, [0.0, 0.0, 0.0]
     if shape.shape == "box":
         assert shape.size is not None
         return mujoco.mjtGeom.mjGEOM_BOX, [float(x) / 2 for x in shape.size]
@@ -40,7 +44,12 @@ def _geom_type_and_size(shape: Shape) -> tuple[Any, list[float]]:
 
 
 def add_shape(
-    body: mujoco.MjsBody, shape: Shape, *, local: bool = False, **attributes: Any
+    body: mujoco.MjsBody,
+    shape: Shape,
+    *,
+    local: bool = False,
+    spec: mujoco.MjSpec | None = None,
+    **attributes: Any,
 ) -> mujoco.MjsGeom:
     """Add ``shape`` as a geom of ``body`` (named as the shape).
 
@@ -49,11 +58,26 @@ def add_shape(
         shape: The scene shape.
         local: Place the geom at the body's origin (the body carries the pose, as a free
             object's body does) instead of at the shape's world pose.
+        spec: The spec that owns ``body``: a mesh shape's vertices become a mesh asset
+            of it (named ``"<shape>_mesh"``; MuJoCo collides with its convex hull).
         attributes: Further geom attributes (``friction``, ``mass``, ``rgba``, ...).
+
+    Returns:
+        The new geom.
+
+    Raises:
+        ValueError: A mesh shape without ``spec``.
     """
     geom_type, size = _geom_type_and_size(shape)
     pose = np.asarray(shape.pose, dtype=float)
     placement = {} if local else {"pos": pose[:3].tolist(), "quat": mujoco_quat(pose).tolist()}
+    if shape.shape == "mesh":
+        if spec is None:
+            raise ValueError(f"mesh shape {shape.name!r} needs the spec to hold its vertices")
+        assert shape.file is not None and shape.scale is not None
+        mesh = spec.add_mesh(name=f"{shape.name}_mesh")
+        mesh.uservert = hull_points(shape.file, shape.scale).ravel().tolist()
+        attributes = {"meshname": mesh.name, **attributes}
     return body.add_geom(name=shape.name, type=geom_type, size=size, **placement, **attributes)
 
 
@@ -84,7 +108,7 @@ def add_scene(
     body. ``object_attributes`` override the object geom's (``friction``, ``mass``,
     ``condim``, ...)."""
     for obstacle in obstacles:
-        add_shape(spec.worldbody, obstacle, **_contact(obstacle))
+        add_shape(spec.worldbody, obstacle, spec=spec, **_contact(obstacle))
     if scene_object is None:
         return None
     pose = np.asarray(scene_object.pose, dtype=float)
@@ -94,7 +118,7 @@ def add_scene(
     if free_object:
         body.add_freejoint(name="object")
     attributes = {"mass": scene_object.mass, **_contact(scene_object), **object_attributes}
-    add_shape(body, scene_object, local=True, **attributes)
+    add_shape(body, scene_object, local=True, spec=spec, **attributes)
     return body
 
 

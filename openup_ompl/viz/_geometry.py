@@ -13,7 +13,9 @@ import math
 import coal
 import numpy as np
 import pinocchio as pin
+from scipy.spatial import ConvexHull
 
+from openup_ompl.meshes import hull_points, revolution_mesh
 from openup_ompl.scene import Shape
 
 #: ``(vertices (n, 3) [m], triangles (m, 3) vertex indices)``, in the geometry's frame.
@@ -57,23 +59,6 @@ def box_mesh(size: np.ndarray, max_edge: float = 0.05) -> Mesh:
     return _merge(faces)
 
 
-def revolution_mesh(profile: np.ndarray, segments: int = 32) -> Mesh:
-    """The surface swept by a ``(k, 2)`` profile of ``(radius, z)`` points about z;
-    profile ends at radius 0 close the surface."""
-    angles = np.linspace(0.0, 2 * math.pi, segments, endpoint=False)
-    r, z = profile[:, :1], profile[:, 1:]
-    rings = np.stack(
-        [r * np.cos(angles), r * np.sin(angles), np.repeat(z, segments, axis=1)], axis=-1
-    )
-    k = len(profile)
-    vertices = rings.reshape(-1, 3)
-    i, j = np.meshgrid(np.arange(k - 1), np.arange(segments), indexing="ij")
-    a = (i * segments + j).ravel()
-    b = (i * segments + (j + 1) % segments).ravel()
-    c, d = b + segments, a + segments
-    return vertices, np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
-
-
 def _cylinder_profile(radius: float, half: float, max_edge: float) -> np.ndarray:
     n = max(1, math.ceil(2 * half / max_edge))
     side = np.stack([np.full(n + 1, radius), np.linspace(-half, half, n + 1)], 1)
@@ -91,6 +76,10 @@ def shape_mesh(shape: Shape, max_edge: float = 0.05) -> Mesh:
     if shape.shape == "box":
         assert shape.size is not None
         return box_mesh(shape.size, max_edge)
+    if shape.shape == "mesh":  # drawn as what is planned and simulated: its convex hull
+        assert shape.file is not None and shape.scale is not None
+        points = np.array(hull_points(shape.file, shape.scale))
+        return points, ConvexHull(points).simplices
     assert shape.radius is not None
     if shape.shape == "sphere":
         return revolution_mesh(_arc_profile(shape.radius, 0.0, 0.0, math.pi))

@@ -27,6 +27,7 @@ import pinocchio as pin
 from openup_ompl._io import make_dir
 from openup_ompl._toml import is_finite
 from openup_ompl.exceptions import ConfigError, MissingExtra
+from openup_ompl.viz._geometry import shape_mesh
 from openup_ompl.viz._scene import PlanScene
 
 OBJECT_COLOR = 0xE8871E
@@ -109,6 +110,9 @@ def _shape_object(mg: Any, shape: Any) -> tuple[Any, np.ndarray]:
         return mg.Box(list(map(float, shape.size))), transform
     if shape.shape == "sphere":
         return mg.Sphere(float(shape.radius)), transform
+    if shape.shape == "mesh":
+        vertices, triangles = shape_mesh(shape)
+        return mg.TriangularMeshGeometry(vertices, triangles), transform
     # three.js cylinders run along their y axis; scene cylinders along z.
     y_to_z = pin.SE3(pin.utils.rotate("x", np.pi / 2), np.zeros(3)).homogeneous
     return mg.Cylinder(float(shape.length), float(shape.radius)), transform @ y_to_z
