@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import importlib
 import inspect
-import re
 import pkgutil
+import re
 import sys
 from pathlib import Path
 
@@ -51,11 +51,48 @@ suppress_warnings = ["ref.python"]
 # The build runs offline (no intersphinx inventories): references to the standard library
 # and to the external libraries' types are not resolved, the rest must be.
 EXTERNAL = (
-    "numpy", "np", "npt", "ompl", "ob", "og", "ot", "pinocchio", "pin", "coal", "hppfcl",
-    "mujoco", "scipy", "matplotlib", "meshcat", "dask", "distributed", "argparse", "pathlib",
-    "collections", "typing", "typing_extensions", "os", "io", "concurrent", "subprocess",
-    "dataclasses", "enum", "json", "types", "abc", "contextlib", "random", "threading",
-    "multiprocessing", "tomllib", "tomli", "xml", "ET", "Path", "NDArray", "ArrayLike",
+    "numpy",
+    "np",
+    "npt",
+    "ompl",
+    "ob",
+    "og",
+    "ot",
+    "pinocchio",
+    "pin",
+    "coal",
+    "hppfcl",
+    "mujoco",
+    "scipy",
+    "matplotlib",
+    "meshcat",
+    "dask",
+    "distributed",
+    "argparse",
+    "pathlib",
+    "collections",
+    "typing",
+    "typing_extensions",
+    "os",
+    "io",
+    "concurrent",
+    "subprocess",
+    "dataclasses",
+    "enum",
+    "json",
+    "types",
+    "abc",
+    "contextlib",
+    "random",
+    "threading",
+    "multiprocessing",
+    "tomllib",
+    "tomli",
+    "xml",
+    "ET",
+    "Path",
+    "NDArray",
+    "ArrayLike",
     "FloatArray",
 )
 nitpick_ignore_regex = [
@@ -64,12 +101,18 @@ nitpick_ignore_regex = [
     (r"py:class", r"openup_ompl\..*\.[A-Z]"),
     (r"py:.*", rf"({'|'.join(EXTERNAL)})(\..*)?"),
     # builtins and typing names as they appear in annotations
-    (r"py:.*", r"(Any|Callable|Iterable|Iterator|Sequence|Mapping|MutableMapping|Literal|"
-               r"Self|TypeAlias|Optional|Union|ClassVar|Final|Generator|TextIO|IO|"
-               r"NoneType|ellipsis|Ellipsis|array-like|optional|\.\.\.)"),
-    (r"py:.*", r"(int|float|str|bool|bytes|dict|list|tuple|set|frozenset|object|type|"
-               r"complex|slice|range|Exception|ValueError|TypeError|KeyError|OSError|"
-               r"RuntimeError|FileNotFoundError|KeyboardInterrupt)"),
+    (
+        r"py:.*",
+        r"(Any|Callable|Iterable|Iterator|Sequence|Mapping|MutableMapping|Literal|"
+        r"Self|TypeAlias|Optional|Union|ClassVar|Final|Generator|TextIO|IO|"
+        r"NoneType|ellipsis|Ellipsis|array-like|optional|\.\.\.)",
+    ),
+    (
+        r"py:.*",
+        r"(int|float|str|bool|bytes|dict|list|tuple|set|frozenset|object|type|"
+        r"complex|slice|range|Exception|ValueError|TypeError|KeyError|OSError|"
+        r"RuntimeError|FileNotFoundError|KeyboardInterrupt)",
+    ),
 ]
 
 
@@ -96,7 +139,10 @@ def _reexported(package: str) -> list[str]:
         home = getattr(obj, "__module__", "") or ""
         if not any(part.startswith("_") for part in home.split(".")) or name.startswith("_"):
             continue
-        kind = "autoclass" if isinstance(obj, type) else "autofunction" if callable(obj) else "autodata"
+        if isinstance(obj, type):
+            kind = "autoclass"
+        else:
+            kind = "autofunction" if callable(obj) else "autodata"
         lines.append(f".. {kind}:: {package}.{name}")
     return lines
 
@@ -116,9 +162,50 @@ def _api_reference() -> str:
     return "\n".join(blocks)
 
 
+def _cli_parser():  # noqa: ANN202
+    """The command line's argparse parser, wherever the CLI module defines it."""
+    for name in ("openup_ompl.cli", "openup_ompl.__main__"):
+        try:
+            module = importlib.import_module(name)
+        except ImportError:
+            continue
+        if hasattr(module, "build_parser"):
+            return module.build_parser()
+    raise ImportError("no build_parser in openup_ompl.cli or openup_ompl.__main__")
+
+
+def _cell(text: str) -> str:
+    return " ".join(text.split()).replace("|", "\\|")
+
+
+def _cli_options(command: str) -> str:
+    """A command's usage line and options table, from the parser itself (so a page never
+    lists an option the command lacks)."""
+    import argparse
+
+    parser = _cli_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    command_parser = sub.choices[command]
+    usage = " ".join(command_parser.format_usage().split())
+    rows = ["| argument | meaning |", "|---|---|"]
+    for action in command_parser._actions:
+        if isinstance(action, argparse._HelpAction):
+            continue
+        name = ", ".join(action.option_strings) or action.dest
+        if action.option_strings and action.nargs != 0:
+            name += f" {action.metavar or action.dest.upper()}"
+            if action.nargs in ("+", "*"):
+                name += " ..."
+        meaning = (action.help or "").replace("%(default)s", str(action.default))
+        rows.append(f"| `{_cell(name)}` | {_cell(meaning)} |")
+    return "```text\n" + usage.removeprefix("usage: ") + "\n```\n\n" + "\n".join(rows) + "\n"
+
+
 def _fill_api(app, docname: str, source: list[str]) -> None:  # noqa: ANN001
     if docname == "api/index":
         source[0] = source[0].replace("<!-- API-MODULES -->", _api_reference())
+    for command in re.findall(r"<!-- CLI-OPTIONS ([\w-]+) -->", source[0]):
+        source[0] = source[0].replace(f"<!-- CLI-OPTIONS {command} -->", _cli_options(command))
 
 
 def _lookup(dotted: str) -> bool:

@@ -43,8 +43,12 @@ assert ss.haveExactSolutionPath(), "no plan within 5 s"
 
 # 5. The path ends at a pregrasp state: append the certified approach to the grasp.
 path = ss.getSolutionPath()
-states = np.array([[path.getState(i)[j] for j in range(space.getDimension())]
-                   for i in range(path.getStateCount())])
+states = np.array(
+    [
+        [path.getState(i)[j] for j in range(space.getDimension())]
+        for i in range(path.getStateCount())
+    ]
+)
 approach = region.approach(states[-1].tolist())
 arm_path = np.vstack([states, approach])
 print(f"{len(states)} waypoints + {len(approach)} approach states")

@@ -17,8 +17,10 @@ from openup_ompl.physics import execute_plan
 
 truth = oo.load_scene(oo.demo_scene_path())
 seen = perceive(truth, noise=NoiseOptions(scale=1.0), rng=np.random.default_rng(1))
-print(f"estimated u = {seen.u:.3f}; position error [mm]:",
-      np.round((seen.pose[:3] - truth.object.pose[:3]) * 1e3, 1))
+print(
+    f"estimated u = {seen.u:.3f}; position error [mm]:",
+    np.round((seen.pose[:3] - truth.object.pose[:3]) * 1e3, 1),
+)
 
 estimate = at_estimate(truth, seen.pose)  # the scene with the object (and grasp) moved
 plan = oo.GraspPlanningSetup(estimate, u=seen.u).solve(time_limit=5.0, seed=1)
