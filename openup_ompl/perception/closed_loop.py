@@ -53,7 +53,7 @@ __all__ = [
     "write_csv",
 ]
 
-#: The columns of the experiment's CSV (README, Perception), then diagnostics.
+#: The columns of the experiment's CSV (the closed loop results page), then diagnostics.
 CSV_COLUMNS = (
     "policy",
     "noise",
