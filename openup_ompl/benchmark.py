@@ -462,7 +462,16 @@ def markdown_table(rows: Sequence[dict[str, Any]]) -> str:
 
 @dataclass(frozen=True)
 class BenchmarkResult:
-    """Where a benchmark wrote its outputs, and its summary rows."""
+    """Where a benchmark wrote its outputs, and its summary rows.
+
+    Attributes:
+        database: ``benchmark.db`` (OMPL's schema, plus the extra ``runs`` columns).
+        logs: The directory of OMPL's log files.
+        summary: ``summary.json``.
+        plots: The PNG plots written (empty without matplotlib or with ``plots=False``).
+        rows: The summary rows (:func:`summarize`).
+        records: Every run's record.
+    """
 
     database: Path
     logs: Path

@@ -102,7 +102,15 @@ def _with_margins(geometry_data: pin.GeometryData, margins: np.ndarray) -> pin.G
 
 @dataclass
 class ThreadContext:
-    """One thread's scratch: Pinocchio data, Coal data and manager, a full ``q``."""
+    """One thread's scratch data for collision checks.
+
+    Attributes:
+        data: Pinocchio data of the robot's model.
+        geometry_data: Pinocchio/Coal geometry data of the world's geometry model.
+        manager: Coal's broadphase manager over that geometry.
+        q: A full configuration [rad or m], written before each check.
+        hand: A buffer for the hand joint values [rad or m] the law computes.
+    """
 
     data: pin.Data
     geometry_data: pin.GeometryData

@@ -23,7 +23,14 @@ ELLIPSE_CHI2 = 6.18
 
 
 def shape_superquadric(shape: Shape) -> Superquadric:
-    """A scene shape as a near-exact superquadric (exponents 0.02 for edges), to draw."""
+    """A scene shape as a near-exact superquadric (exponents 0.02 for edges), to draw.
+
+    Args:
+        shape: A box, cylinder or sphere of a scene.
+
+    Returns:
+        The superquadric (half-sizes [m], exponents, pose).
+    """
     placement = pin.XYZQUATToSE3(shape.pose)
     if shape.shape == "box":
         assert shape.size is not None
@@ -51,6 +58,15 @@ def plot_perception(perception: Perception, truth: Shape, out: Path, title: str 
     Left: the object's points, the fitted superquadric (wireframe) and the true object
     (grey) in 3D. Right: the same from above (world x-y) with the estimated centre's
     2-sigma ellipse (:data:`ELLIPSE_CHI2`) and the true centre.
+
+    Args:
+        perception: The perception (cloud, fit, covariance, ``u``).
+        truth: The true object.
+        out: The PNG file (its directory is created).
+        title: Figure title (default: ``u`` and the point count).
+
+    Returns:
+        ``out``.
 
     Raises:
         MissingExtra: matplotlib is not installed.

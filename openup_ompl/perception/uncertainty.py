@@ -56,6 +56,12 @@ def clearance_per_u(problem: Problem) -> float:
     kinematics of its collision geometry (boxes around each link, in the palm frame) at
     ``u = 0`` and ``u = 1``; half the largest growth is what each side of the object
     gains: ``k = max_axis (extent(u=1) - extent(u=0)) / 2``.
+
+    Args:
+        problem: The scene (robot, grasp pose, law).
+
+    Returns:
+        ``k`` [m per unit of ``u``], ``>= 0``.
     """
     law = problem.hand_law
     approach = np.abs(np.asarray(problem.robot.spec.approach, dtype=float))
@@ -97,6 +103,15 @@ def lateral_sigma(
     across its axis too (the hand slides along it); its largest standard deviation is
     taken. A box's yaw about the world z axis adds ``sigma_yaw`` times its half diagonal
     in the horizontal plane (a cylinder's or sphere's yaw moves no surface).
+
+    Args:
+        position_covariance: The estimate's position covariance (3 x 3) [m²].
+        rotation_covariance: Its rotation covariance (3 x 3) [rad²].
+        problem: The scene (the object's shape and the grasp's approach axis).
+        sizes: The fitted half-sizes [m] (default: the scene object's).
+
+    Returns:
+        The standard deviation [m].
     """
     shape = problem.object
     if shape is None:
@@ -143,6 +158,16 @@ def u_from_covariance(
 
     ``u = 1`` when the hand cannot cover that error (or ``k = 0``: a hand that does not
     open with ``u``) and the error is not zero.
+
+    Args:
+        position_covariance: The estimate's position covariance (3 x 3) [m²].
+        rotation_covariance: Its rotation covariance (3 x 3) [rad²].
+        problem: The scene (robot, grasp, law, object).
+        sizes: The fitted half-sizes [m] (default: the scene object's).
+        coverage: Standard deviations to cover.
+
+    Returns:
+        ``u`` in [0, 1].
     """
     if not (math.isfinite(coverage) and coverage > 0):
         raise ConfigError("coverage", coverage, "a positive number of standard deviations")

@@ -45,6 +45,15 @@ def show(
     """Write the pictures of a plan file: ``<stem>.html``, ``<stem>_storyboard.png`` and
     ``<stem>_hand_law.png`` in ``out_dir`` (default: the plan file's directory).
 
+    Args:
+        plan: The plan file.
+        out_dir: Where to write (default: the plan file's directory).
+        html: Animation options (default :class:`HtmlOptions`).
+        storyboard: Storyboard options (default :class:`StoryboardOptions`).
+
+    Returns:
+        The three paths written (:class:`Shown`).
+
     Raises:
         ConfigError: ``plan`` is not a path (draw a :class:`~openup_ompl.Plan` in memory
             with :meth:`PlanScene.from_plan` and the writers), the file is not a readable

@@ -33,6 +33,13 @@ def figure_path(out: str | Path, where: str = "out") -> Path:
     name without a suffix (as matplotlib's ``savefig`` does), so that callers report the
     real path.
 
+    Args:
+        out: The file asked for.
+        where: How to name it in an error.
+
+    Returns:
+        The path the figure will be written to.
+
     Raises:
         ConfigError: ``out`` is a directory, or its suffix a format matplotlib cannot
             write (the message lists those it can), named at ``where``.

@@ -74,7 +74,15 @@ class StoryboardOptions:
 
 def frame_rows(scene: PlanScene, count: int) -> list[int]:
     """Path rows to show: evenly spaced in palm travel, with the row where the hand
-    reaches its maximum grip aperture (``d <= mga``) replacing the nearest of them."""
+    reaches its maximum grip aperture (``d <= mga``) replacing the nearest of them.
+
+    Args:
+        scene: The loaded plan.
+        count: How many frames (fewer than 2 count as 2).
+
+    Returns:
+        Row indices of the plan's path, increasing, the first 0 and the last the grasp.
+    """
     count = max(2, count)
     targets = np.linspace(0.0, 1.0, count)
     rows = [int(np.argmin(np.abs(scene.progress - t))) for t in targets]
@@ -236,7 +244,16 @@ def closeup_bounds(
 ) -> tuple[np.ndarray, np.ndarray]:
     """The cube [m, world frame] a hand close-up draws: around ``anchor`` (a position, or a
     pose whose first three values are one: the palm's origin, the object's centre) and the
-    hand's triangles, its side ``margin`` times their largest extent."""
+    hand's triangles, its side ``margin`` times their largest extent.
+
+    Args:
+        anchor: A position [m] or a pose whose first three values are one.
+        hand: The hand's meshes (vertices [m], triangles).
+        margin: The cube's side over the hand's largest extent.
+
+    Returns:
+        ``(low, high)`` corners [m], each ``(3,)``.
+    """
     points = np.concatenate(
         [np.asarray(anchor, dtype=float)[None, :3], _triangles(hand).reshape(-1, 3)]
     )
