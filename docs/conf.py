@@ -261,17 +261,18 @@ def _resolve_by_name(app, env, node, contnode):  # noqa: ANN001, ANN201
 
 def _instance_attribute(module: str, cls: str, target: str) -> bool:
     """Whether ``target`` (``name`` or ``Class.name``) is an attribute that the class's
-    own code assigns on ``self`` (set in ``__init__``, so not visible on the class)."""
+    own code, or a base class's, assigns on ``self`` (set in ``__init__``, so not visible
+    on the class; a tuple assignment ``self.a, self.b = ...`` counts)."""
     *owner, name = target.split(".")
     path = ".".join([module, *(owner or [cls])])
     parts = path.split(".")
     try:
-        obj = importlib.import_module(".".join(parts[:-1]))
-        klass = getattr(obj, parts[-1])
-        source = inspect.getsource(klass)
+        klass = getattr(importlib.import_module(".".join(parts[:-1])), parts[-1])
+        sources = [inspect.getsource(base) for base in inspect.getmro(klass)[:-1]]
     except (ImportError, AttributeError, TypeError, OSError, ValueError):
         return False
-    return re.search(rf"self\.{re.escape(name)}\b\s*(:[^=\n]*)?=", source) is not None
+    assigned = re.compile(rf"self\.{re.escape(name)}\b[^=\n]*=(?!=)")
+    return any(assigned.search(source) for source in sources)
 
 
 def _prose_attribute_docstrings() -> None:

@@ -162,3 +162,17 @@ def json_safe(value: Any, digits: int | None = None) -> Any:
     if isinstance(value, (list, tuple)):
         return [json_safe(item, digits) for item in value]
     return value
+
+
+def json_with_rows(data: dict[str, Any], keys: tuple[str, ...]) -> str:
+    """``data`` as indented JSON text, the lists of number rows at ``keys`` written one row
+    a line (by the C encoder: the indented encoder is pure Python and took 0.1 s for a
+    plan of 2400 rows, a third of ``openup-ompl plan``'s own work)."""
+    rows = {key: data[key] for key in keys}
+    marks = {key: f"@@{key}@@" for key in rows}
+    text = json.dumps({**data, **marks}, indent=1, allow_nan=False)
+    for key, value in rows.items():
+        # Rows of numbers only: "], [" occurs between rows and nowhere else.
+        lines = json.dumps(value, allow_nan=False)[1:-1].replace("], [", "],\n  [")
+        text = text.replace(json.dumps(marks[key]), f"[\n  {lines}\n ]", 1)
+    return text

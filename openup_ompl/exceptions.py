@@ -340,3 +340,19 @@ class SimulationDiverged(OpenUpError):
             f"the physics simulation diverged during the {phase} at {time:.3f} s ({detail});"
             " try a smaller PhysicsOptions.timestep"
         )
+
+
+class PlanRejected(ConfigError):
+    """A plan fails its re-validation against its scene before use
+    (:func:`~openup_ompl.revalidate.revalidate_plan`): a stale or edited plan is never run.
+
+    Attributes:
+        row: Index of the first bad state in the plan's path.
+        reason: What is wrong with it.
+    """
+
+    def __init__(self, where: str, row: int, reason: str, expected: str) -> None:
+        self.row = int(row)
+        self.reason = reason
+        self.where, self.value, self.expected = f"{where}path[{self.row}]", reason, expected
+        OpenUpError.__init__(self, f"{self.where}: {reason}; expected {expected}")

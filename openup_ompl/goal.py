@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Any
+from collections.abc import Sequence
 
 import numpy as np
 from ompl import base as ob
@@ -326,19 +326,13 @@ class IKGoalRegion(ob.GoalSampleableRegion):
         nxt = self.goal.ik.palm_step(arm, -self.pregrasp_step * checker.robot.spec.approach)
         return nxt is not None and checker.finest_world.touches_environment(checker.coupled_q(nxt))
 
-    def _arm_values(self, arm: Any) -> np.ndarray:
-        """``arm`` as an array of the arm's joint values: a sequence or array of them, or an
-        OMPL state of the region's space (indexable by joint)."""
-        if isinstance(arm, np.ndarray | list | tuple):
-            return np.asarray(arm, dtype=float)
-        try:
-            return np.array([arm[i] for i in range(self._n)], dtype=float)
-        except (TypeError, IndexError, ValueError) as err:
-            raise ConfigError(
-                "arm", repr(arm), f"{self._n} arm joint values or an OMPL state"
-            ) from err
+    def _arm_values(self, arm: ob.State | np.ndarray | Sequence[float]) -> np.ndarray:
+        """The arm joint values of an OMPL state over the arm joints, or of a sequence."""
+        if isinstance(arm, ob.State):
+            return np.array(arm[0 : self._n], dtype=float)
+        return np.asarray(arm, dtype=float)
 
-    def _retreat_to(self, arm: Any) -> list[np.ndarray] | None:
+    def _retreat_to(self, arm: ob.State | np.ndarray | Sequence[float]) -> list[np.ndarray] | None:
         """The retreat that ends at ``arm`` (bit for bit) if it is a sampled pregrasp."""
         key = self._arm_values(arm).tobytes()
         chain = self._retreats.get(key)
@@ -346,36 +340,23 @@ class IKGoalRegion(ob.GoalSampleableRegion):
             chain if chain is not None and len(chain) > 1 and chain[-1].tobytes() == key else None
         )
 
-    def is_pregrasp(self, arm: Any) -> bool:
-        """Whether ``arm`` (bit for bit) is a pregrasp state this region sampled.
-
-        Args:
-            arm: The arm's joint values [rad or m]: a sequence, an array, or an OMPL state
-                of the region's space (a path's last state).
-
-        Returns:
-            True if the region sampled ``arm`` as the end of a retreat.
-
-        Raises:
-            ConfigError: ``arm`` is neither joint values nor an OMPL state.
-        """
+    def is_pregrasp(self, arm: ob.State | np.ndarray | Sequence[float]) -> bool:
+        """Whether ``arm`` (an OMPL state or the arm joint values [rad or m], bit for bit)
+        is a pregrasp state this region sampled."""
         return self._retreat_to(arm) is not None
 
-    def approach(self, arm: Any) -> np.ndarray:
+    def approach(self, arm: ob.State | np.ndarray | Sequence[float]) -> np.ndarray:
         """The certified straight approach from a sampled pregrasp state to its grasp
         configuration.
 
         Args:
-            arm: The pregrasp state's arm joint values [rad or m]: a sequence, an array,
-                or an OMPL state of the region's space (``path.getState(n - 1)``).
+            arm: The pregrasp state: an OMPL state of :attr:`goal`'s arm space (e.g. a
+                path's last state) or its arm joint values [rad or m], bit for bit as
+                sampled.
 
         Returns:
-            ``(k, dof)`` arm configurations [rad or m], ``arm`` itself left out, the grasp
-            configuration last; empty (``(0, dof)``) when ``arm`` is not a pregrasp state
-            of this region (a path that already ends at the grasp).
-
-        Raises:
-            ConfigError: ``arm`` is neither joint values nor an OMPL state.
+            ``(k, dof)`` arm configurations, ``arm`` itself left out, the grasp last;
+            empty (``(0, dof)``) when ``arm`` is not a pregrasp state of this region.
         """
         chain = self._retreat_to(arm)
         return np.empty((0, self._n)) if chain is None else np.array(chain[-2::-1])

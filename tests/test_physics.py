@@ -300,7 +300,7 @@ def test_rollout_frames_follow_the_phases(panda_plan):
     record = Rollout(ou.read_plan(panda_plan)).run(frames=True)
     assert record.frames is not None
     phases = list(dict.fromkeys(record.frames["phase"]))
-    assert phases == ["settle", "reach", "close", "lift", "hold"]
+    assert phases == ["settle", "reach", "close", "squeeze", "lift", "hold"]
     assert len(record.frames["object"]) == len(record.frames["q"])
 
 

@@ -90,6 +90,10 @@ class PhysicsOptions:
             drawn from the run's seed (0: none; the rollout is then deterministic and the
             seed only recorded).
         frame_period: Period [s] of the frames kept for the viewer.
+        neighbour_moved_distance: A movable obstacle displaced by more than this [m]
+            between the end of the settle and the end of the rollout was moved.
+        neighbour_tipped_angle: One whose up axis (its own z) turned by more than this
+            [rad] over the same interval was tipped.
     """
 
     timestep: float = 0.002  # [s]
@@ -125,6 +129,8 @@ class PhysicsOptions:
     object_mass: float | None = None
     object_jitter: float = 0.0  # [m]
     frame_period: float = 0.02  # [s]
+    neighbour_moved_distance: float = 0.02  # [m]
+    neighbour_tipped_angle: float = math.radians(45.0)  # [rad]
 
     def __post_init__(self) -> None:
         solimp = self.contact_solimp
@@ -185,6 +191,12 @@ class PhysicsOptions:
                 "PhysicsOptions.lift_speed",
                 self.lift_speed,
                 f"a lift of at most {PHASE_MAX:g} s (lift_height / lift_speed)",
+            )
+        if self.neighbour_tipped_angle > math.pi:
+            raise ConfigError(
+                "PhysicsOptions.neighbour_tipped_angle",
+                self.neighbour_tipped_angle,
+                "an angle in (0, pi] rad",
             )
         if self.speed > 1:
             raise ConfigError("PhysicsOptions.speed", self.speed, "a fraction in (0, 1]")
