@@ -342,7 +342,14 @@ class IKGoalRegion(ob.GoalSampleableRegion):
 
     def is_pregrasp(self, arm: ob.State | np.ndarray | Sequence[float]) -> bool:
         """Whether ``arm`` (an OMPL state or the arm joint values [rad or m], bit for bit)
-        is a pregrasp state this region sampled."""
+        is a pregrasp state this region sampled.
+
+        Args:
+            arm: An OMPL state of the arm's space, or the arm joint values [rad or m].
+
+        Returns:
+            True if the region sampled ``arm`` as the end of a retreat.
+        """
         return self._retreat_to(arm) is not None
 
     def approach(self, arm: ob.State | np.ndarray | Sequence[float]) -> np.ndarray:

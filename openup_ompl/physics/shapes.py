@@ -147,7 +147,17 @@ def add_free_body(
 ) -> mujoco.MjsBody:
     """Add ``shape`` as the geom of a free body ``name`` (a free joint of that name) at
     the shape's pose, with its ``mass`` and ``friction``; ``attributes`` override the
-    geom's. Returns the body."""
+    geom's. Returns the body.
+
+    Args:
+        spec: The MuJoCo spec to add to.
+        shape: The shape (its pose, ``mass`` [kg] and ``friction``).
+        name: The body's and its free joint's name.
+        **attributes: MuJoCo geom attributes overriding the shape's.
+
+    Returns:
+        The new body.
+    """
     body = _add_body(spec, shape, name, **attributes)
     body.add_freejoint(name=name)
     return body
