@@ -9,10 +9,10 @@ Run: ``python perceive_plan_execute.py``.
 """
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 import openup_ompl as oo
 from openup_ompl.perception import NoiseOptions, at_estimate, perceive
+from openup_ompl.perception.closed_loop import planar_offset
 from openup_ompl.physics import execute_plan
 
 truth = oo.load_scene(oo.demo_scene_path())
@@ -25,10 +25,10 @@ print(
 estimate = at_estimate(truth, seen.pose)  # the scene with the object (and grasp) moved
 plan = oo.GraspPlanningSetup(estimate, u=seen.u).solve(time_limit=5.0, seed=1)
 
-# The plan believes the object is at the estimate; the world has it at the true pose.
-dx, dy = truth.object.pose[:2] - seen.pose[:2]
-yaw_true = Rotation.from_quat(truth.object.pose[3:]).as_euler("xyz")[2]
-yaw_seen = Rotation.from_quat(seen.pose[3:]).as_euler("xyz")[2]
-dyaw = float(np.angle(np.exp(1j * (yaw_true - yaw_seen))))
-record = execute_plan(plan, (float(dx), float(dy), dyaw), frames=False)
+# The plan believes the object is at the estimate; the world has it at the true pose:
+# the offset is the true object's planar pose relative to the estimate (dx, dy [m], yaw
+# [rad]), as `openup-ompl execute --true-scene` computes it.
+assert estimate.object is not None and truth.object is not None
+offset = planar_offset(estimate.object, truth.object)
+record = execute_plan(plan, offset, frames=False)
 print(record.verdict)
