@@ -4,7 +4,7 @@ truth.
 A simulated depth camera looks at the can; a superquadric fit gives its pose and
 covariance, and the covariance gives ``u``. The plan is made for the estimated object (the
 grasp pose moves with it) and executed in physics against the object where it truly is:
-the offset passed to ``execute_plan`` is the true pose relative to the estimate.
+``execute_plan(plan, truth=...)`` puts the true scene's object in the plan's world.
 Run: ``python perceive_plan_execute.py``.
 """
 
@@ -12,7 +12,6 @@ import numpy as np
 
 import openup_ompl as oo
 from openup_ompl.perception import NoiseOptions, at_estimate, perceive
-from openup_ompl.perception.closed_loop import planar_offset
 from openup_ompl.physics import execute_plan
 
 truth = oo.load_scene(oo.demo_scene_path())
@@ -25,10 +24,7 @@ print(
 estimate = at_estimate(truth, seen.pose)  # the scene with the object (and grasp) moved
 plan = oo.GraspPlanningSetup(estimate, u=seen.u).solve(time_limit=5.0, seed=1)
 
-# The plan believes the object is at the estimate; the world has it at the true pose:
-# the offset is the true object's planar pose relative to the estimate (dx, dy [m], yaw
-# [rad]), as `openup-ompl execute --true-scene` computes it.
-assert estimate.object is not None and truth.object is not None
-offset = planar_offset(estimate.object, truth.object)
-record = execute_plan(plan, offset, frames=False)
+# The plan believes the object is at the estimate; the world has it at the true pose
+# (`truth`: the true scene's object replaces the plan's, as `execute --truth` does).
+record = execute_plan(plan, truth=truth, frames=False)
 print(record.verdict)

@@ -34,6 +34,21 @@ def check_dir(path: Path, what: str = "directory") -> Path:
     return path
 
 
+def resolved(path: str | Path, what: str) -> Path:
+    """``path`` made absolute, its symbolic links resolved (``~`` expanded).
+
+    Raises:
+        ConfigError: Its symbolic links form a loop (naming the path), which
+            :meth:`pathlib.Path.resolve` reports as a bare ``RuntimeError`` or ``OSError``.
+    """
+    try:
+        return Path(path).expanduser().resolve()
+    except (RuntimeError, OSError) as error:
+        raise ConfigError(
+            what, str(path), f"a path that resolves, not a loop of symbolic links ({error})"
+        ) from None
+
+
 def make_dir(path: Path) -> Path:
     """Create the directory ``path`` and its parents if missing; returns ``path``.
 

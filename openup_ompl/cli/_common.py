@@ -118,6 +118,13 @@ class Parser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # type: ignore[override]
         self.exit(2, f"{self.prog}: error: {message}\n")
 
+    def _get_values(self, action: argparse.Action, arg_strings: list[str]) -> Any:
+        # ``--flag=--`` reaches an option as ["--"], which argparse strips to no value at
+        # all: ``--seed=--`` became ``[]`` (a traceback), ``--u=--`` the default sweep.
+        if action.option_strings and arg_strings == ["--"] and action.nargs != 0:
+            self.error(f"argument {'/'.join(action.option_strings)}: expected a value, got '--'")
+        return super()._get_values(action, arg_strings)
+
 
 def _writable(path: Path, nearest: Path) -> None:
     """Refuse ``path`` when its nearest existing directory ``nearest`` takes no new file
@@ -217,8 +224,10 @@ def plan_scene(args: argparse.Namespace, scene: Path) -> tuple[GraspPlanningSetu
 
     Raises:
         PlanningFailed: No solution within the time limit.
-        ConfigError: A bad scene file.
+        ConfigError: A bad scene file, its ``[camera]`` table included (refused as
+            ``perceive`` refuses it, though planning does not use it).
     """
+    from openup_ompl.perception.camera import camera_of_scene
     from openup_ompl.planning import GraspPlanningSetup, PlanningOptions
     from openup_ompl.scene import load_scene
 
@@ -230,7 +239,9 @@ def plan_scene(args: argparse.Namespace, scene: Path) -> tuple[GraspPlanningSetu
         time_limit=args.time,
         simplify=not args.no_simplify,
     )
-    setup = GraspPlanningSetup(load_scene(scene), options)
+    problem = load_scene(scene)
+    camera_of_scene(problem)
+    setup = GraspPlanningSetup(problem, options)
     return setup, setup.solve(seed=args.seed)
 
 

@@ -94,6 +94,8 @@ class PhysicsOptions:
             between the end of the settle and the end of the rollout was moved.
         neighbour_tipped_angle: One whose up axis (its own z) turned by more than this
             [rad] over the same interval was tipped.
+        pads: Use the robot file's contact pads (``[physics] pads``); ``False``: the
+            URDF's collision geometry makes every contact (as before pads existed).
     """
 
     timestep: float = 0.002  # [s]
@@ -131,6 +133,7 @@ class PhysicsOptions:
     frame_period: float = 0.02  # [s]
     neighbour_moved_distance: float = 0.02  # [m]
     neighbour_tipped_angle: float = math.radians(45.0)  # [rad]
+    pads: bool = True
 
     def __post_init__(self) -> None:
         solimp = self.contact_solimp
@@ -151,8 +154,10 @@ class PhysicsOptions:
                 "(d0, dwidth, width, mid, power), 0 < d0 <= dwidth < 1, width > 0,"
                 " 0 < mid < 1, power >= 1",
             )
+        if not isinstance(self.pads, bool):
+            raise ConfigError("PhysicsOptions.pads", self.pads, "True or False")
         for item in fields(self):
-            if item.name == "contact_solimp":
+            if item.name in ("contact_solimp", "pads"):
                 continue
             value = getattr(self, item.name)
             if value is None and item.name in ("object_friction", "object_mass"):
