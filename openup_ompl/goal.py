@@ -323,7 +323,7 @@ class IKGoalRegion(ob.GoalSampleableRegion):
         """A ``time.perf_counter()`` value past which no more goals are offered than the
         run has drawn since it was set (at least one: BITstar cannot start without a
         goal). BITstar and FMT draw ``maxSampleCount()`` goals up front without looking
-        at the time, an IK solve each (10,000 took 73 s of a 5 s limit).
+        at the time, an IK solve each, far past a planning time limit.
         :meth:`GraspPlanningSetup.solve <openup_ompl.planning.GraspPlanningSetup.solve>`
         sets it to its time limit and clears it after."""
         return self._deadline

@@ -65,9 +65,8 @@ __all__ = [
 #: out its limit.
 RESTARTED_PLANNERS = ("rrtconnect",)
 #: Motions checked since the last goal was drawn after which such a run is restarted (its
-#: trees cleared, a new goal drawn). Solved `rrtconnect` runs of the three suites and of
-#: six unseen Panda scenes (5 seeds each) went at most 1,616 motions between two draws;
-#: runs stuck on one goal 7,100-9,700 in 5 s.
+#: trees cleared, a new goal drawn): above what solved `rrtconnect` runs check between two
+#: draws, below what runs stuck on one goal check within a 5 s limit.
 STALL_MOTIONS = 2500
 
 

@@ -153,18 +153,16 @@ class PlanningOptions:
         ikbirrt_options: IKBiRRT settings (its seed is set by the run).
         max_goal_samples: ``maxSampleCount()`` of the goal region.
         planner_range: ``setRange`` [rad, joint-space norm] of the OMPL planners made by
-            name. OMPL's default (20 % of the space's extent, 2.6 rad on the Panda) measured
-            2-8x slower in median solve time on the shipped and test scenes: long coupled
-            motions mostly end in collision.
+            name. OMPL's default (20 % of the space's extent) measured slower on the shipped
+            and test scenes: long coupled motions mostly end in collision.
         pregrasp: The goal region's pregrasp distance [m], at most 1 (see
             :class:`~openup_ompl.goal.IKGoalRegion`): OMPL's planners are given pregrasp
             states, each an IK solution backed off straight against the approach direction,
             and :meth:`~openup_ompl.planning.GraspPlanningSetup.solve` appends the
             certified approach. 0 gives them the grasp configurations themselves. IKBiRRT
             grows its own retreat (``ikbirrt_options.retreat``) and ignores it. The
-            default, IKBiRRT's retreat, measured 3.8x (Panda) and 2.9x (LWA3) faster in
-            median solve time with ``rrtconnect`` and the law on the problem suites, level
-            on the UR5 + Allegro.
+            default, IKBiRRT's retreat, measured faster with ``rrtconnect`` and the law on
+            the problem suites.
     """
 
     u: float | None = None

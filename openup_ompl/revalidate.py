@@ -6,7 +6,7 @@ drives a robot, every state of its path is checked again with the planner's own 
 validator wrap): joint limits, the hand on the law, consecutive states no farther apart
 than the motion validator's resolution, and every motion between them collision-free by
 the certified motion check. A plan made in this process and not written out need not be
-checked again (the physics sweeps pass ``validate=False``).
+checked again: the physics sweeps execute the plans they have just made without it.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from openup_ompl.robot import Robot, load_robot
 from openup_ompl.scene import Problem
 from openup_ompl.validity import DEFAULT_RESOLUTION, CoupledChecker
 
-__all__ = ["Revalidation", "revalidate_plan", "plan_problem"]
+__all__ = ["Revalidation", "plan_problem", "revalidate_plan"]
 
 #: Slack [rad or m] on a joint limit and on the law's hand (rounding only: the planner
 #: writes the law's value itself, within the limits).

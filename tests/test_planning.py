@@ -25,7 +25,7 @@ from openup_ompl.executor import run_tasks
 from openup_ompl.goal import GOAL_THRESHOLD
 from openup_ompl.grasp import ClosingOptions
 from openup_ompl.perception.closed_loop import ClosedLoopOptions
-from openup_ompl.perception.superquadric import FitOptions
+from openup_ompl.perception.fit import FitOptions
 from openup_ompl.physics import PhysicsOptions
 from openup_ompl.physics.rollout import check_offset
 from openup_ompl.validity import CoupledChecker

@@ -16,6 +16,7 @@ from openup_ompl.study.errors import believe, parse_error
 from openup_ompl.study.families import instance_problem, parse_families, template_scene
 from openup_ompl.study.report import MAP_COLUMNS, PAIR_COLUMNS
 from openup_ompl.study.run import run_trial, trial_seeds
+from openup_ompl.study.stats import mcnemar_exact, wilson_interval
 
 
 def _rows(path: Path) -> list[dict[str, str]]:
@@ -82,7 +83,7 @@ def test_study_resumes_from_its_shards(tmp_path: Path) -> None:
 
 
 def test_study_csv_columns(tmp_path: Path) -> None:
-    """Both CSVs have their columns; counts and intervals are consistent."""
+    """Both CSVs have their columns; intervals and p-values recompute from their counts."""
     options = StudyOptions(
         tuple(parse_families(["panda-can"])), errors=("pose-1cm",), policies=("0", "adaptive"),
         trials=2,
@@ -93,10 +94,16 @@ def test_study_csv_columns(tmp_path: Path) -> None:
     assert [r["policy"] for r in rows] == ["0", "adaptive"]
     for row in rows:
         assert int(row["trials"]) == 2
+        low, high = wilson_interval(int(row["successes"]), int(row["trials"]))
+        assert float(row["ci_low"]) == pytest.approx(low, rel=1e-5)
+        assert float(row["ci_high"]) == pytest.approx(high, rel=1e-5)
         assert float(row["ci_low"]) <= float(row["rate"]) <= float(row["ci_high"])
     pairs = _rows(result.pairs_csv)
     assert tuple(pairs[0]) == PAIR_COLUMNS
     assert [(p["policy_a"], p["policy_b"]) for p in pairs] == [("0", "adaptive")]
+    p = pairs[0]
+    expected = mcnemar_exact(int(p["a_only"]), int(p["b_only"]))
+    assert float(p["p_value"]) == pytest.approx(expected, rel=1e-5)
 
 
 def test_study_options_refuse_bad_values() -> None:

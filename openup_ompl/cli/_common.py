@@ -224,8 +224,10 @@ def plan_scene(args: argparse.Namespace, scene: Path) -> tuple[GraspPlanningSetu
 
     Raises:
         PlanningFailed: No solution within the time limit.
-        ConfigError: A bad scene file.
+        ConfigError: A bad scene file, its ``[camera]`` table included (refused as
+            ``perceive`` refuses it, though planning does not use it).
     """
+    from openup_ompl.perception.camera import camera_of_scene
     from openup_ompl.planning import GraspPlanningSetup, PlanningOptions
     from openup_ompl.scene import load_scene
 
@@ -237,7 +239,9 @@ def plan_scene(args: argparse.Namespace, scene: Path) -> tuple[GraspPlanningSetu
         time_limit=args.time,
         simplify=not args.no_simplify,
     )
-    setup = GraspPlanningSetup(load_scene(scene), options)
+    problem = load_scene(scene)
+    camera_of_scene(problem)
+    setup = GraspPlanningSetup(problem, options)
     return setup, setup.solve(seed=args.seed)
 
 

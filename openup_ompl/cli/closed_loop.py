@@ -57,6 +57,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--out", type=out_path, default=Path("openup-closed-loop"), help="output directory"
     )
     parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    from openup_ompl.perception.cli import add_error_arguments
+
+    add_error_arguments(parser)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -16,7 +16,8 @@ HELP = (
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """The plan, the object's pose error, ``--out``, the seed and ``--no-validate``."""
+    """The plan, the object's error (an offset and/or the true scene), ``--out``, the
+    seed and ``--no-validate``."""
     parser.add_argument("plan", type=Path, help="plan JSON (README, Files: Plan)")
     parser.add_argument(
         "--object-offset",
@@ -25,6 +26,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=(0.0, 0.0, 0.0),
         metavar=("DX", "DY", "YAW"),
         help="true object pose error: world x, y [m] and yaw about its own z [rad]",
+    )
+    parser.add_argument(
+        "--truth",
+        type=Path,
+        default=None,
+        metavar="SCENE.toml",
+        help="the true scene: its [object] (pose, shape, mass, friction) replaces the plan's,"
+        " e.g. the scene a perceived.toml was estimated from (--object-offset then moves it)",
     )
     parser.add_argument(
         "--out", type=out_path, default=None, help="output directory (default: the plan's)"
@@ -40,23 +49,25 @@ def run(args: argparse.Namespace) -> int:
     on a held grasp, 1 on a failed one.
 
     Raises:
-        ConfigError: A bad plan, offset or ``--out``.
+        ConfigError: A bad plan, offset, true scene or ``--out``.
         PlanRejected: The plan fails its re-validation.
     """
     from openup_ompl.physics import execute_plan, write_execution
     from openup_ompl.physics.rollout import check_offset
     from openup_ompl.plan import PlanFile
     from openup_ompl.revalidate import revalidate_plan
+    from openup_ompl.scene import load_scene
 
     if args.out is not None:
         dir_out(args.out)
     check_offset(args.object_offset)
+    truth = None if args.truth is None else load_scene(args.truth)
     plan = PlanFile.read(args.plan)
-    if plan.object is None:
+    if plan.object is None and truth is None:
         raise ConfigError(f"{args.plan.name}: scene.object", None, "an object to grasp")
-    if not args.no_validate:
+    if not args.no_validate:  # against the plan's own scene: the true object may differ
         revalidate_plan(plan, where=f"{args.plan.name}: ")
-    record = execute_plan(plan, args.object_offset, seed=args.seed)
+    record = execute_plan(plan, args.object_offset, seed=args.seed, truth=truth)
     path = write_execution(record, args.out if args.out is not None else args.plan.parent)
     print(f"{record.verdict} (execution written to {path})")
     return 0 if record.success else 1

@@ -30,6 +30,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--seed", type=seed, default=1, help="seed of the sensor noise")
     parser.add_argument("--out", type=out_path, required=True, help="output directory")
+    from openup_ompl.perception.cli import add_error_arguments
+
+    add_error_arguments(parser)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -99,6 +99,7 @@ def run(args: argparse.Namespace) -> int:
     from openup_ompl.robustness import RobustnessOptions, markdown_tables, run_robustness
 
     dir_out(args.out)
+    created = not args.out.exists()
     given = {"us": args.u, "deltas": args.delta, "yaws": args.yaw}
     sweep: dict[str, Any] = {key: tuple(value) for key, value in given.items() if value}
     options = RobustnessOptions(
@@ -112,14 +113,19 @@ def run(args: argparse.Namespace) -> int:
         torsion=args.torsion,
         execute=args.execute,
     )
-    result = run_robustness(
-        args.scene,
-        options,
-        args.out,
-        workers=args.workers,
-        scheduler=args.scheduler,
-        quiet=args.quiet,
-    )
+    try:
+        result = run_robustness(
+            args.scene,
+            options,
+            args.out,
+            workers=args.workers,
+            scheduler=args.scheduler,
+            quiet=args.quiet,
+        )
+    except BaseException:
+        if created and args.out.is_dir() and not any(args.out.iterdir()):
+            args.out.rmdir()  # a run that ended before any trial leaves no empty --out
+        raise
     print(markdown_tables(result.rows), end="")
     print(f"table written to {result.csv} and {result.markdown}")
     if result.plot is not None:

@@ -11,8 +11,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from openup_ompl.exceptions import ConfigError
-from openup_ompl.physics.targets import robot_spec
-from openup_ompl.physics.world import RobotTable
+from openup_ompl.physics.world import RobotTable, robot_spec
 from openup_ompl.scene import Shape
 
 if TYPE_CHECKING:

@@ -38,8 +38,8 @@ class PhysicsOptions:
         timestep: Simulation step [s] (``implicitfast`` integrator).
         contact_timeconst: Time constant [s] of the object's contacts (MuJoCo's
             ``solref[0]``; the object's contacts use its parameters). MuJoCo's default,
-            0.02 s, let the fingers sink 5-20 mm into a 0.1 kg can under the squeeze;
-            0.004 s (twice the timestep, the stiffest MuJoCo advises) keeps it below ~4 mm.
+            0.02 s, lets the fingers sink into the can under the squeeze; 0.004 s is twice
+            the timestep, the stiffest MuJoCo advises.
         contact_solimp: The object's ``solimp`` (impedance at zero and full depth, the
             depth [m] between them, midpoint, power).
         impratio: MuJoCo's ratio of frictional to normal constraint impedance (with
@@ -94,6 +94,8 @@ class PhysicsOptions:
             between the end of the settle and the end of the rollout was moved.
         neighbour_tipped_angle: One whose up axis (its own z) turned by more than this
             [rad] over the same interval was tipped.
+        pads: Use the robot file's contact pads (``[physics] pads``); ``False``: the
+            URDF's collision geometry makes every contact (as before pads existed).
     """
 
     timestep: float = 0.002  # [s]
@@ -131,6 +133,7 @@ class PhysicsOptions:
     frame_period: float = 0.02  # [s]
     neighbour_moved_distance: float = 0.02  # [m]
     neighbour_tipped_angle: float = math.radians(45.0)  # [rad]
+    pads: bool = True
 
     def __post_init__(self) -> None:
         solimp = self.contact_solimp
@@ -151,8 +154,10 @@ class PhysicsOptions:
                 "(d0, dwidth, width, mid, power), 0 < d0 <= dwidth < 1, width > 0,"
                 " 0 < mid < 1, power >= 1",
             )
+        if not isinstance(self.pads, bool):
+            raise ConfigError("PhysicsOptions.pads", self.pads, "True or False")
         for item in fields(self):
-            if item.name == "contact_solimp":
+            if item.name in ("contact_solimp", "pads"):
                 continue
             value = getattr(self, item.name)
             if value is None and item.name in ("object_friction", "object_mass"):

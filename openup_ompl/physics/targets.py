@@ -8,24 +8,14 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from openup_ompl.exceptions import ConfigError, OpenUpError
+from openup_ompl.exceptions import ConfigError
 from openup_ompl.grasp import closing_limits
-from openup_ompl.physics.world import World
+from openup_ompl.physics.world import World, robot_spec
 
 if TYPE_CHECKING:
     from openup_ompl.robot_file import RobotSpec
 
 __all__ = ["closed_configuration", "closed_targets", "displaced_pose", "lift_rows", "robot_spec"]
-
-
-def robot_spec(name: str) -> RobotSpec | None:
-    """The shipped or installed robot file of ``name``, or ``None`` if none is found."""
-    from openup_ompl.robot import RobotSpec, find_robot_file
-
-    try:
-        return RobotSpec.from_file(find_robot_file(name))
-    except OpenUpError:  # a robot this package does not know: c/w it is
-        return None
 
 
 def closed_configuration(

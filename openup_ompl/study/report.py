@@ -130,14 +130,18 @@ def plot_study(
     )
     colours = plt.get_cmap("tab10")(np.arange(len(policies)) % 10)
     xs = np.arange(len(errors))
+    # Policies that pick the same u draw the same line: each is shifted a little along x,
+    # the named ones dashed.
+    shifts = (np.arange(len(policies)) - (len(policies) - 1) / 2) * 0.02
     for ax, family in zip(axes.flat, families, strict=False):
         cell = {(r["error"], r["policy"]): r for r in rows if r["family"] == family}
-        for policy, colour in zip(policies, colours, strict=True):
+        for policy, colour, shift in zip(policies, colours, shifts, strict=True):
             points = [(i, cell[(e, policy)]) for i, e in enumerate(errors) if (e, policy) in cell]
             if not points:
                 continue
-            at = np.array([i for i, _ in points])
-            ax.plot(at, [r["rate"] for _, r in points], "o-", color=colour, label=policy, ms=3)
+            at = np.array([i for i, _ in points]) + shift
+            style = "o-" if policy[0].isdigit() else "s--"
+            ax.plot(at, [r["rate"] for _, r in points], style, color=colour, label=policy, ms=3)
             low = [r["ci_low"] for _, r in points]
             ax.fill_between(at, low, [r["ci_high"] for _, r in points], color=colour, alpha=0.12)
         trials = max((r["trials"] for r in cell.values()), default=0)
