@@ -9,6 +9,9 @@ and the mean ``u`` of the planned trials.
 ``uncertainty_pairs.csv``, one row per cell and pair of policies (:data:`PAIR_COLUMNS`):
 the paired trials ``n``, those only A held and only B held, and the exact McNemar test's
 two-sided p-value (:func:`~openup_ompl.study.stats.mcnemar_exact`).
+
+Both add pooled rows (family ``all``: every family per error; family and error ``all``:
+everything) when the study has more than one family.
 """
 
 from __future__ import annotations
@@ -24,7 +27,15 @@ import numpy as np
 from openup_ompl._io import make_dir
 from openup_ompl.study.stats import mcnemar_exact, wilson_interval
 
-__all__ = ["MAP_COLUMNS", "PAIR_COLUMNS", "pair_rows", "plot_study", "map_rows", "write_rows"]
+__all__ = [
+    "MAP_COLUMNS",
+    "PAIR_COLUMNS",
+    "POOLED",
+    "map_rows",
+    "pair_rows",
+    "plot_study",
+    "write_rows",
+]
 
 MAP_COLUMNS = (
     "family", "error", "policy", "trials", "successes", "rate", "ci_low", "ci_high",
@@ -33,12 +44,27 @@ MAP_COLUMNS = (
 PAIR_COLUMNS = ("family", "error", "policy_a", "policy_b", "n", "a_only", "b_only", "p_value")
 
 
+#: The family and error names of pooled rows.
+POOLED = "all"
+
+
 def _cells(records: Sequence[dict[str, Any]]) -> dict[tuple[str, str], list[dict[str, Any]]]:
-    """The trials of each ``(family, error)``, in trial order."""
+    """The trials of each ``(family, error)``, in trial order; then, with more than one
+    family, every family pooled per error (family :data:`POOLED`), and with more than one
+    error as well, everything pooled (``(POOLED, POOLED)``). Pooled trials stay paired:
+    each is one trial of every policy."""
     cells: dict[tuple[str, str], list[dict[str, Any]]] = {}
     for record in records:
         cells.setdefault((record["family"], record["error"]), []).extend(record["trials"])
-    return {key: sorted(trials, key=lambda t: t["trial"]) for key, trials in cells.items()}
+    ordered = {key: sorted(trials, key=lambda t: t["trial"]) for key, trials in cells.items()}
+    families = {family for family, _ in ordered}
+    errors = list(dict.fromkeys(error for _, error in ordered))
+    if len(families) > 1:
+        for error in errors:
+            ordered[(POOLED, error)] = [t for (_, e), ts in cells.items() if e == error for t in ts]
+        if len(errors) > 1:
+            ordered[(POOLED, POOLED)] = [t for ts in cells.values() for t in ts]
+    return ordered
 
 
 def map_rows(records: Sequence[dict[str, Any]], policies: Sequence[str]) -> list[dict[str, Any]]:
@@ -121,7 +147,7 @@ def plot_study(
     from openup_ompl.viz._mpl import _pyplot, _save
 
     plt = _pyplot()
-    families = list(dict.fromkeys(r["family"] for r in rows))
+    families = list(dict.fromkeys(r["family"] for r in rows if r["error"] != POOLED))
     policies = list(dict.fromkeys(r["policy"] for r in rows))
     columns = min(4, len(families))
     lines = -(-len(families) // columns)
