@@ -19,7 +19,7 @@ if TYPE_CHECKING:
 
     from openup_ompl.scene import Problem, Shape
 
-__all__ = ["add_scene", "add_shape", "mujoco_quat", "scene_spec"]
+__all__ = ["add_free_body", "add_scene", "add_shape", "mujoco_quat", "scene_spec"]
 
 
 def mujoco_quat(pose: Sequence[float] | np.ndarray) -> np.ndarray:
@@ -111,14 +111,31 @@ def add_scene(
         add_shape(spec.worldbody, obstacle, spec=spec, **_contact(obstacle))
     if scene_object is None:
         return None
-    pose = np.asarray(scene_object.pose, dtype=float)
+    if not free_object:
+        return _add_body(spec, scene_object, "object", **object_attributes)
+    return add_free_body(spec, scene_object, "object", **object_attributes)
+
+
+def add_free_body(
+    spec: mujoco.MjSpec, shape: Shape, name: str, **attributes: Any
+) -> mujoco.MjsBody:
+    """Add ``shape`` as the geom of a free body ``name`` (a free joint of that name) at
+    the shape's pose, with its ``mass`` and ``friction``; ``attributes`` override the
+    geom's. Returns the body."""
+    body = _add_body(spec, shape, name, **attributes)
+    body.add_freejoint(name=name)
+    return body
+
+
+def _add_body(spec: mujoco.MjSpec, shape: Shape, name: str, **attributes: Any) -> mujoco.MjsBody:
+    """``shape`` as the geom of a body ``name`` of the world body, at the shape's pose."""
+    pose = np.asarray(shape.pose, dtype=float)
     body = spec.worldbody.add_body(
-        name="object", pos=pose[:3].tolist(), quat=mujoco_quat(pose).tolist()
+        name=name, pos=pose[:3].tolist(), quat=mujoco_quat(pose).tolist()
     )
-    if free_object:
-        body.add_freejoint(name="object")
-    attributes = {"mass": scene_object.mass, **_contact(scene_object), **object_attributes}
-    add_shape(body, scene_object, local=True, spec=spec, **attributes)
+    add_shape(
+        body, shape, local=True, spec=spec, **{"mass": shape.mass, **_contact(shape), **attributes}
+    )
     return body
 
 

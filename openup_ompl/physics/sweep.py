@@ -71,7 +71,7 @@ def physics_run(
     record["physics"] = dict(options.__dict__)
     if plan is None:
         return record
-    rollout = Rollout(plan.to_dict(), options)
+    rollout = Rollout(plan, options)
     record["trials"] = []
     for dx, dy, yaw in perturbations:
         try:
@@ -97,16 +97,19 @@ def physics_judge(setup: GraspPlanningSetup, plan: Plan, truth: Problem) -> dict
     from openup_ompl.exceptions import SimulationDiverged
     from openup_ompl.perception.closed_loop import planar_offset
     from openup_ompl.physics.rollout import Rollout
+    from openup_ompl.scene import Shape
 
     estimate, true = setup.problem.object, truth.object
     assert estimate is not None and true is not None
-    data = plan.to_dict()
-    data["scene"] = {**data["scene"], "object": true.to_table()}
     # The world holds the truth, so the rollout's own offset is 0; the trial reports the
-    # truth's planar offset from the estimate, as the kinematic judge does.
+    # truth's planar offset from the estimate, as the kinematic judge does. The truth is
+    # taken as a plan file holds an object (its table read back, the quaternion normalised
+    # once more), which keeps the verdicts of the closed-loop runs bit for bit.
     dx, dy, yaw = planar_offset(estimate, true)
+    true = Shape.from_table(true.to_table(), "truth object", is_object=True)
     try:
-        record = Rollout(data).run((0.0, 0.0, 0.0), frames=False).to_dict(False)
+        rollout = Rollout(plan, scene_object=true)
+        record = rollout.run((0.0, 0.0, 0.0), frames=False).to_dict(False)
     except SimulationDiverged as error:
         trial = _diverged(error)
     else:

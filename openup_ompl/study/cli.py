@@ -10,19 +10,22 @@ from typing import Any
 __all__ = ["add_parser", "study_command"]
 
 
-def add_parser(subparsers: Any, **types: Any) -> argparse.ArgumentParser:
-    """Add ``study`` to a command line's subparsers.
-
-    Args:
-        subparsers: ``ArgumentParser.add_subparsers()``'s result.
-        types: The command line's argument checkers (``count``, ``seed``, ``planner``,
-            ``time_limit``, ``scheduler``, ``out_path``); plain ones otherwise.
-    """
+def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+    """Add ``study`` to a command line's subparsers (``ArgumentParser.add_subparsers()``'s
+    result) and return its parser; flags are checked by the command line's own checkers."""
+    from openup_ompl.cli import _common
     from openup_ompl.study.errors import DEFAULT_ERRORS
     from openup_ompl.study.families import KINDS, ROBOTS
     from openup_ompl.study.policies import DEFAULT_POLICIES
 
-    count = types.get("count", int)
+    count = _common.count
+    types: dict[str, Any] = {
+        "seed": _common.seed,
+        "planner": _common.planner,
+        "time_limit": _common.time_limit,
+        "scheduler": _common.scheduler,
+        "out_path": _common.out_path,
+    }
     study = subparsers.add_parser(
         "study",
         help="where does opening the hand pay? paired trials of scene families, error"
