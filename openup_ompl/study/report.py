@@ -2,9 +2,10 @@
 
 ``uncertainty_map.csv``, one row per ``(family, error, policy)`` cell (:data:`MAP_COLUMNS`):
 trials, trials held (``successes``), the rate and its Wilson 95 % interval, trials where
-a neighbour was disturbed (``NA`` while the rollout does not report it), plan failures,
-views perception refused (``not_seen``), trials where a robot link touched an obstacle
-and the mean ``u`` of the planned trials.
+a neighbour was disturbed (moved > 2 cm or tipped; ``NA`` when the rollout does not
+report it) and those held with no neighbour disturbed, trials where the robot touched a
+movable neighbour, plan failures, views perception refused (``not_seen``), trials where
+a robot link touched a fixed obstacle and the mean ``u`` of the planned trials.
 
 ``uncertainty_pairs.csv``, one row per cell and pair of policies (:data:`PAIR_COLUMNS`):
 the paired trials ``n``, those only A held and only B held, and the exact McNemar test's
@@ -39,7 +40,8 @@ __all__ = [
 
 MAP_COLUMNS = (
     "family", "error", "policy", "trials", "successes", "rate", "ci_low", "ci_high",
-    "disturbed", "plan_failures", "not_seen", "obstacle_contacts", "mean_u",
+    "disturbed", "held_undisturbed", "neighbour_touched", "plan_failures", "not_seen",
+    "obstacle_contacts", "mean_u",
 )  # fmt: skip
 PAIR_COLUMNS = ("family", "error", "policy_a", "policy_b", "n", "a_only", "b_only", "p_value")
 
@@ -88,6 +90,12 @@ def map_rows(records: Sequence[dict[str, Any]], policies: Sequence[str]) -> list
                     "ci_low": low,
                     "ci_high": high,
                     "disturbed": sum(bool(d) for d in known) if known else "NA",
+                    "held_undisturbed": sum(
+                        bool(r["held"]) and r.get("disturbed") is False for r in results
+                    )
+                    if known
+                    else "NA",
+                    "neighbour_touched": sum(bool(r.get("neighbour_touched")) for r in results),
                     "plan_failures": sum(r["cause"] == "plan failed" for r in results),
                     "not_seen": sum(r["cause"] == "not seen" for r in results),
                     "obstacle_contacts": sum(bool(r.get("obstacle_contact")) for r in results),
