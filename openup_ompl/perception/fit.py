@@ -45,6 +45,10 @@ from openup_ompl.perception.superquadric import (
 
 __all__ = ["FitOptions", "Silhouette", "fit_superquadric"]
 
+#: How far [m] a fitted surface may come before the depth its pixel measured (the
+#: sensor's noise and the pixel's footprint on a slanted surface: centimetres would
+#: still be caught).
+DEPTH_MARGIN = 0.01
 #: The least RMS spread [m] of a fitted cloud about its mean in its second direction:
 #: 0.1 mm, a hundredth of the sensor noise's size.
 MIN_SPREAD = 1e-4
@@ -125,6 +129,12 @@ class Silhouette:
     below it adds its depth below it, and one residual, weighted as all the points
     together, holds the lowest sample on it: the object stands on its support.
 
+    A ray that measured a surface also says the space before it is free: a sample nearer
+    the camera than the depth its pixel measured (on the object or an occluder), by more
+    than :data:`DEPTH_MARGIN`, adds the difference (with a wall around a window in front,
+    the occluder's pixels left a can's fit free to grow 14 cm towards the camera, through
+    the wall).
+
     Attributes:
         distance: ``(H, W)`` pixel distance to the allowed region (0 inside it).
         position: Camera position [m], world frame.
@@ -132,6 +142,8 @@ class Silhouette:
         intrinsics: ``(fx, fy, cx, cy)`` [px].
         samples: Surface sample angles (:func:`~openup_ompl.perception.superquadric._angles`).
         support: Height [m, world z] of the surface the object stands on (None: unknown).
+        depth: ``(H, W)`` depth [m] measured at the allowed pixels (-inf elsewhere: no
+            bound); None: no depth bound.
     """
 
     distance: np.ndarray
@@ -140,6 +152,7 @@ class Silhouette:
     intrinsics: tuple[float, float, float, float]
     samples: np.ndarray
     support: float | None = None
+    depth: np.ndarray | None = None
 
     @classmethod
     def from_view(
@@ -151,13 +164,18 @@ class Silhouette:
         intrinsics: tuple[float, float, float, float],
         samples: tuple[int, int] = (10, 20),
         support: float | None = None,
+        depth: np.ndarray | None = None,
     ) -> Silhouette:
         """From ``(H, W)`` masks of the object's pixels and of pixels whose hit is in
-        front of the object (where it may hide), and the ``support``'s height."""
+        front of the object (where it may hide), the ``support``'s height and the
+        ``(H, W)`` measured ``depth`` [m] (NaN: none)."""
         from scipy.ndimage import distance_transform_edt
 
         allowed = object_mask | occluder_mask
         distance = distance_transform_edt(~allowed)
+        free = None
+        if depth is not None:
+            free = np.where(allowed & np.isfinite(depth), depth, -np.inf)
         return cls(
             np.asarray(distance, dtype=float),
             position,
@@ -165,6 +183,7 @@ class Silhouette:
             intrinsics,
             _angles(*samples),
             support,
+            free,
         )
 
     def excess(self, world: np.ndarray) -> np.ndarray:
@@ -180,6 +199,13 @@ class Silhouette:
         row = fy * camera[:, 1] / z + cy - 0.5
         pixels = map_coordinates(self.distance, [row, column], order=1, mode="nearest")
         excess = (np.maximum(pixels - 1.0, 0.0) * z / fx).reshape(shape)
+        if self.depth is not None:
+            height, width = self.depth.shape
+            r = np.clip(np.round(row).astype(int), 0, height - 1)
+            c = np.clip(np.round(column).astype(int), 0, width - 1)
+            inside = (row > -0.5) & (row < height - 0.5) & (column > -0.5) & (column < width - 0.5)
+            before = np.where(inside, self.depth[r, c] - DEPTH_MARGIN - camera[:, 2], 0.0)
+            excess = excess + np.maximum(before, 0.0).reshape(shape)
         if self.support is None:
             return excess
         return excess + np.maximum(self.support - world[..., 2], 0.0)
