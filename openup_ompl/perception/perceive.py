@@ -232,7 +232,9 @@ def _fitted(
     """One fit of ``points``: the superquadric, the object's pose, its ``(6, 6)``
     covariance (the fit's, the calibration errors', no turn about a symmetry axis) and
     ``u``."""
-    result = fit_superquadric(points, fit, shape, weights)
+    assert problem.object is not None
+    prior = (nominal_of(problem.object).half, options.size_sigma) if options.size_sigma else None
+    result = fit_superquadric(points, fit, shape, weights, prior)
     bound = (fit or FitOptions()).min_size
     if float(np.min(result.superquadric.sizes)) <= DEGENERATE_FACTOR * bound:
         raise DegenerateFit(result.superquadric.sizes.tolist(), bound)
