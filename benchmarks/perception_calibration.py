@@ -110,8 +110,8 @@ def _plot(table: list, out: Path, exact: bool) -> None:  # type: ignore[type-arg
         ax.plot(levels, observed, label=f"{name} ({d2.size} views)")
     ax.set_xlabel("expected coverage (reported region's probability)")
     ax.set_ylabel("observed coverage (true position inside)")
-    errors = "sensor noise alone" if exact else "sensor noise and camera calibration errors"
-    ax.set_title(f"Perception covariance calibration\n({errors}, noise 0.5-4 pooled)")
+    errors = "sensor noise alone" if exact else "with camera calibration errors"
+    ax.set_title(f"Perceived covariance: coverage\n({errors}; noise levels pooled)")
     ax.legend(fontsize=8)
     ax.set_xlim(0, 1)
     ax.set_ylim(0, 1)
