@@ -357,25 +357,7 @@ def fit_superquadric(
     from scipy.optimize import least_squares
 
     options = options or FitOptions()
-    points = np.asarray(points, dtype=float)
-    needed = 2 * N_PARAMETERS
-    if points.ndim != 2 or points.shape[1] != 3:
-        raise ConfigError("points", f"an array of shape {points.shape}", "(N, 3) rows [x, y, z]")
-    if points.shape[0] < needed:
-        raise TooFewPoints(int(points.shape[0]), needed)
-    if not np.all(np.isfinite(points)):
-        raise ConfigError("points", "non-finite values", "finite [x, y, z] rows [m]")
-    # Points at one place or on one line leave the surface undetermined, and the fit
-    # then finds a perfect one: a zero covariance, "certain" from no information.
-    spread = np.linalg.svd(points - points.mean(axis=0), compute_uv=False) / math.sqrt(
-        points.shape[0]
-    )
-    if spread[1] < MIN_SPREAD:
-        raise ConfigError(
-            "points",
-            f"{points.shape[0]} points at one place or on a line (spread {spread[1]:.2g} m)",
-            f"points spread over a surface, more than {MIN_SPREAD:g} m in two directions",
-        )
+    points = _checked_points(points)
     low = np.array([options.min_size] * 3 + [options.min_exponent] * 2 + [-np.inf] * 6)
     high = np.array([options.max_size] * 3 + [options.max_exponent] * 2 + [np.inf] * 6)
     evaluations = 0
@@ -417,9 +399,23 @@ def fit_superquadric(
         scale = _rms(first.fun[: len(points)])  # the points' spread about the best start
         prior = SizePrior(np.asarray(size_prior[0], dtype=float), size_prior[1], scale)
     result = solve(first.x, reference, options.max_evaluations, silhouette, weights, prior)
-    superquadric = _split(result.x, reference)
+    return _result(result.x, reference, points, silhouette, weights, prior, options, evaluations)
+
+
+def _result(
+    x: np.ndarray,
+    reference: np.ndarray,
+    points: np.ndarray,
+    silhouette: Silhouette | None,
+    weights: np.ndarray | None,
+    prior: SizePrior | None,
+    options: FitOptions,
+    evaluations: int,
+) -> SuperquadricFit:
+    """The fit at its optimum ``x`` (about ``reference``), with its covariance."""
+    superquadric = _split(x, reference)
     # Re-linearise about the fitted orientation: the rotation block is then in its frame.
-    x = result.x.copy()
+    x = x.copy()
     x[8:11] = 0.0
     args = (points, superquadric.rotation, silhouette, weights, prior)
     residuals = _residuals(x, *args)
@@ -442,6 +438,31 @@ def fit_superquadric(
         residuals=residuals[rows],
         kind=options.covariance,
     )
+
+
+def _checked_points(points: np.ndarray) -> np.ndarray:
+    """``points`` as an ``(N, 3)`` float array fit for the fit (see
+    :func:`fit_superquadric`'s ``Raises``)."""
+    points = np.asarray(points, dtype=float)
+    needed = 2 * N_PARAMETERS
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise ConfigError("points", f"an array of shape {points.shape}", "(N, 3) rows [x, y, z]")
+    if points.shape[0] < needed:
+        raise TooFewPoints(int(points.shape[0]), needed)
+    if not np.all(np.isfinite(points)):
+        raise ConfigError("points", "non-finite values", "finite [x, y, z] rows [m]")
+    # Points at one place or on one line leave the surface undetermined, and the fit
+    # then finds a perfect one: a zero covariance, "certain" from no information.
+    spread = np.linalg.svd(points - points.mean(axis=0), compute_uv=False) / math.sqrt(
+        points.shape[0]
+    )
+    if spread[1] < MIN_SPREAD:
+        raise ConfigError(
+            "points",
+            f"{points.shape[0]} points at one place or on a line (spread {spread[1]:.2g} m)",
+            f"points spread over a surface, more than {MIN_SPREAD:g} m in two directions",
+        )
+    return points
 
 
 def _rms(values: np.ndarray) -> float:
