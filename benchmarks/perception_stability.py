@@ -5,13 +5,15 @@ perceive`` gives them by default (``--camera auto``, the default calibration err
 restarts) or with ``--exact`` (the sensor noise alone).
 
     python benchmarks/perception_stability.py              # the six unseen Panda scenes
-    python benchmarks/perception_stability.py --exact
+    python benchmarks/perception_stability.py --exact              # one fit per view
+    python benchmarks/perception_stability.py --exact --restarts 5
     python benchmarks/perception_stability.py --scenes scenes/lwa3_sdh_can.toml
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 import time
 from pathlib import Path
@@ -39,8 +41,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--noise", type=float, nargs="+", default=[0.5, 1.0, 3.0])
     parser.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3, 4])
     parser.add_argument("--exact", action="store_true", help="no camera calibration errors")
+    parser.add_argument("--restarts", type=int, default=None, help="fits per view")
     args = parser.parse_args(argv)
     options = PerceptionOptions.exact() if args.exact else PerceptionOptions()
+    if args.restarts is not None:
+        options = dataclasses.replace(options, restarts=args.restarts)
     print(_common.machine_line(_common.machine_info()))
     print(f"error model: {options}")
     print(
