@@ -101,8 +101,8 @@ class SuperquadricFit:
         fitted covariance. Left free instead, a size and the centre along the line of sight
         trade off (a box's face seen fixes only centre plus half-size, a can's front only
         its curvature): the points do not bound them, the free space does, and the
-        points' covariance gave them a noise-dependent variance (the jumping ``u`` of
-        issue 34). The scene names the object's dimensions: ``size_sigma`` is how well.
+        points' covariance gave them a noise-dependent variance (``u`` jumped between
+        seeds). The scene names the object's dimensions: ``size_sigma`` is how well.
         """
         if size_sigma <= 0 or self.jacobian is None or self.residuals is None:
             covariance = self.conditioned(fixed)

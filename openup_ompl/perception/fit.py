@@ -132,9 +132,8 @@ class Silhouette:
 
     A ray that measured a surface also says the space before it is free: a sample nearer
     the camera than the depth its pixel measured (on the object or an occluder), by more
-    than :data:`DEPTH_MARGIN`, adds the difference (with a wall around a window in front,
-    the occluder's pixels left a can's fit free to grow 14 cm towards the camera, through
-    the wall).
+    than :data:`DEPTH_MARGIN`, adds the difference (an occluder's pixels otherwise leave
+    the fit free to grow towards the camera, through the occluder: README, Perception).
 
     Attributes:
         distance: ``(H, W)`` pixel distance to the allowed region (0 inside it).
@@ -344,9 +343,9 @@ def fit_superquadric(
             deviation along each unit normal (world frame), e.g.
             :func:`~openup_ompl.perception.noise.normal_sigma`; None: unweighted.
         size_prior: The scene's half-extents [m] and how well they are known [m]: each
-            fitted half-size is pulled to the one it best matches (:class:`SizePrior`; a fit
-            of a can seen at noise 4 otherwise grew 16 cm away from the camera, behind
-            its own silhouette, in 2 views of 12); None: the sizes free.
+            fitted half-size is pulled to the one it best matches (:class:`SizePrior`;
+            without it a fit at high noise may grow away from the camera behind its own
+            silhouette: README, Perception); None: the sizes free.
 
     Raises:
         TooFewPoints: Fewer points than twice the 11 parameters (fewer than 11 leaves the

@@ -35,9 +35,9 @@ __all__ = ["AZIMUTH_STEP", "ELEVATIONS", "ViewChoice", "choose_camera"]
 ELEVATIONS = (40.0, 20.0, 60.0, 75.0)
 #: The ring's azimuth step [deg].
 AZIMUTH_STEP = 30.0
-#: The best views by outline that are fitted (noise-free) to pick the one whose fit
-#: matches the scene's dimensions best: a view of a can's side from behind its table let
-#: the fit settle on a 12 mm slab, its centre 20 mm off, with the outline fully bounded.
+#: The best views by outline that are fitted to pick the one whose fit matches the
+#: scene's dimensions best (a view can bound the outline and still leave the fit a wrong
+#: minimum: README, Perception).
 FITTED = 6
 
 
