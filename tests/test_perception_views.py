@@ -76,3 +76,20 @@ def test_no_view_of_a_caged_object_is_refused_by_name() -> None:
     caged = dataclasses.replace(problem, obstacles=walls)
     with pytest.raises(NoViewSeesObject, match="can"):
         choose_camera(caged, camera_of_scene(problem))
+
+
+def test_the_python_api_takes_camera_auto() -> None:
+    """``perceive(problem, "auto")`` looks through the ring view the command uses; another
+    string is a ConfigError."""
+    from openup_ompl.exceptions import ConfigError
+    from openup_ompl.perception import perceive
+    from openup_ompl.perception.extrinsic import PerceptionOptions
+
+    problem = ou.load_scene(WINDOW_SCENE)
+    seen = perceive(
+        problem, "auto", rng=np.random.default_rng(1), options=PerceptionOptions.exact()
+    )
+    choice = choose_camera(problem, camera_of_scene(problem))
+    np.testing.assert_allclose(seen.camera, choice.camera.position)
+    with pytest.raises(ConfigError, match="camera"):
+        perceive(problem, "best")
