@@ -52,7 +52,7 @@ def measure(scene: Path, trials: int, workers: int) -> dict[str, object]:
         execute(setup, plan, dx, dy, yaw, torsion=problem.robot.spec.torsion)
         kinematic.append(time.perf_counter() - started)
     started = time.perf_counter()
-    rollout = Rollout(plan.to_dict())
+    rollout = Rollout(plan)
     build_s = time.perf_counter() - started
     physics, steps = [], []
     for offset in offsets:

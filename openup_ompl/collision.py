@@ -24,9 +24,9 @@ from openup_ompl.motion_bound import self_pair_factors
 from openup_ompl.scene import Problem, Shape
 
 # Coal's naive manager (AABB test on every pair, then the narrow phase) measured fastest
-# for single configurations of robots with a few dozen geometries: 6.5 us against 14 us for
-# the dynamic AABB tree and 39 us for Pinocchio's pair loop on the Panda scene. Batches go
-# through the dynamic AABB tree pool, the only pool Pinocchio binds.
+# for single configurations of robots with a few dozen geometries
+# (``benchmarks/bench_validity.py``). Batches go through the dynamic AABB tree pool, the
+# only pool Pinocchio binds.
 _Manager: Any = pin.BroadPhaseManager_NaiveCollisionManager
 _ManagerPool: Any = pin.BroadPhaseManagerPool_DynamicAABBTreeCollisionManager
 #: Smallest batch sent to the thread pool (see :meth:`CollisionWorld.batch_in_collision`).
@@ -37,13 +37,12 @@ def _without_warm_start(
     geometry_data: pin.GeometryData, distances: bool = True
 ) -> pin.GeometryData:
     """Turn off GJK's cached initial guess in every collision request, and in every
-    distance request unless ``distances`` is false (data that never computes distances:
-    the loop costs about 1 us a request, 0.8 ms for the UR5 + Allegro's distance
-    requests alone).
+    distance request unless ``distances`` is false (data that never computes distances
+    need not pay for the loop over its requests).
 
     With it on (Pinocchio's default), a query's answer can depend on the queries before
-    it: our benchmark saw a 1.3 mm penetration reported free, and the same distance
-    query asked twice differed by 0.6 um. The cost is about 4 %.
+    it (a penetration reported free, a distance that changes when asked twice); turning it
+    off costs a few per cent.
     """
     requests = list(geometry_data.collisionRequests)
     if distances:
@@ -67,6 +66,14 @@ def self_margins(problem: Problem, geometry_model: pin.GeometryModel, padding: f
     the sum of their moves, so self-collision pairs keep up to twice the padding, and a
     motion check covers self-collision between its states as it covers the environment.
     Pairs inside the hand (moved relative to each other only by the fingers) keep 0.
+
+    Args:
+        problem: The loaded scene (its robot's motion bounds).
+        geometry_model: The world's geometry model and its collision pairs.
+        padding: The world's padding [m].
+
+    Returns:
+        One margin [m] per collision pair of ``geometry_model``.
     """
     margins = np.zeros(len(geometry_model.collisionPairs))
     if padding <= 0.0:
@@ -94,7 +101,15 @@ def _with_margins(geometry_data: pin.GeometryData, margins: np.ndarray) -> pin.G
 
 @dataclass
 class ThreadContext:
-    """One thread's scratch: Pinocchio data, Coal data and manager, a full ``q``."""
+    """One thread's scratch data for collision checks.
+
+    Attributes:
+        data: Pinocchio data of the robot's model.
+        geometry_data: Pinocchio/Coal geometry data of the world's geometry model.
+        manager: Coal's broadphase manager over that geometry.
+        q: A full configuration [rad or m], written before each check.
+        hand: A buffer for the hand joint values [rad or m] the law computes.
+    """
 
     data: pin.Data
     geometry_data: pin.GeometryData
@@ -117,6 +132,14 @@ def build_collision_model(
     Each environment shape is grown by ``padding`` [m] plus the robot's own
     ``spec.padding`` on every side (the robot's is never halved). Self-collision pairs get
     their margins from the world (:func:`self_margins`), not from the geometry.
+
+    Args:
+        problem: The loaded scene (robot, obstacles, object).
+        environment: The shapes to collide with (default: the obstacles and the object).
+        padding: Growth of every environment shape [m].
+
+    Returns:
+        The Pinocchio geometry model with its collision pairs.
     """
     robot = problem.robot
     model = robot.collision_model.copy()
@@ -169,7 +192,11 @@ class CollisionWorld:
         self._pool_lock = threading.Lock()
 
     def context(self) -> ThreadContext:
-        """This thread's Pinocchio and Coal scratch data (created on first use)."""
+        """This thread's Pinocchio and Coal scratch data (created on first use).
+
+        Returns:
+            The calling thread's :class:`ThreadContext`.
+        """
         try:
             return self._local.context  # type: ignore[no-any-return]
         except AttributeError:
@@ -187,7 +214,14 @@ class CollisionWorld:
             return context
 
     def in_collision(self, q: np.ndarray) -> bool:
-        """Whether the full configuration ``q`` collides (self, obstacles or object)."""
+        """Whether the full configuration ``q`` collides (self, obstacles or object).
+
+        Args:
+            q: Full configuration [rad or m], Pinocchio's ``q`` order.
+
+        Returns:
+            True if any tested pair collides (with its margin).
+        """
         context = self.context()
         return bool(pin.computeCollisions(self.model, context.data, context.manager, q, True))
 
@@ -198,8 +232,15 @@ class CollisionWorld:
         flags are then only meaningful as "some configuration collides". Batches of at
         least :data:`PARALLEL_MIN_STATES` go to Pinocchio's thread pool; smaller ones, and
         every batch of a one-thread world, are checked one by one in this thread: waking
-        the pool's sleeping threads costs about 100 us per call, the price of 15-20
-        single checks (``benchmarks/bench_speed.py``).
+        the pool's sleeping threads costs more than a small batch's single checks
+        (``benchmarks/bench_speed.py``).
+
+        Args:
+            qs: Full configurations [rad or m] as columns, ``(nq, N)``.
+            stop_at_first: Stop at the first colliding configuration.
+
+        Returns:
+            ``(N,)`` booleans, True where a configuration collides.
         """
         n = qs.shape[1]
         if self.num_threads == 1 or n < PARALLEL_MIN_STATES:
@@ -228,7 +269,14 @@ class CollisionWorld:
     def colliding_pairs(self, q: np.ndarray) -> list[tuple[str, str]]:
         """Names of the geometry pairs in collision at ``q``, each with its margin (the
         padding, and between the robot's own links :func:`self_margins`), as
-        :meth:`in_collision` checks them: for error messages."""
+        :meth:`in_collision` checks them: for error messages.
+
+        Args:
+            q: Full configuration [rad or m].
+
+        Returns:
+            ``(geometry, geometry)`` name pairs, empty when ``q`` is free.
+        """
         data = self.model.createData()
         geometry_data = _with_margins(
             _without_warm_start(self.geometry_model.createData(), distances=False), self.margins
@@ -244,7 +292,14 @@ class CollisionWorld:
         ]
 
     def touches_environment(self, q: np.ndarray) -> bool:
-        """Whether ``q`` collides with an obstacle or the object (self-collision aside)."""
+        """Whether ``q`` collides with an obstacle or the object (self-collision aside).
+
+        Args:
+            q: Full configuration [rad or m].
+
+        Returns:
+            True if a robot geometry touches an environment shape.
+        """
         context = self.context()
         geometry_data = context.geometry_data
         pin.computeCollisions(

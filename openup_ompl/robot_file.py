@@ -1,4 +1,4 @@
-"""Robot files (README, Files: Robot): the TOML format read into a :class:`RobotSpec`.
+"""Robot files (see the file formats): the TOML format read into a :class:`RobotSpec`.
 
 Only reading and checking: loading the URDF is :mod:`openup_ompl.urdf`, the loaded model
 :mod:`openup_ompl.robot`.
@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from openup_ompl import _toml
+from openup_ompl._io import resolved
 from openup_ompl._resources import data_dir, resolve_path
 from openup_ompl.exceptions import ConfigError, RobotNotFound
 from openup_ompl.hand_law import MGA_MIN
@@ -123,6 +124,95 @@ def _mimic_specs(raw: Any, where: str, arm: list[str], hand: list[str]) -> tuple
     return tuple(specs)
 
 
+#: Shapes a contact pad may take, and the size keys of each.
+PAD_SHAPES = {"box": ("size",), "capsule": ("radius", "length"), "sphere": ("radius",)}
+#: The largest pad extent [m] (a finger pad, not a table).
+PAD_MAX = 0.2
+
+
+@dataclass(frozen=True)
+class PadSpec:
+    """A contact pad: physics-only contact geometry on a robot link (``[[physics.pads]]``).
+
+    In the physics world a pad meets the object and the movable obstacles; the link's URDF
+    collision geometries that contain the pad's centre meet only the fixed obstacles
+    there (planning keeps the URDF's geometry throughout).
+
+    Attributes:
+        link: The link (a URDF link name) the pad is fixed to.
+        shape: ``"box"``, ``"capsule"`` or ``"sphere"``.
+        pose: ``[x, y, z, qx, qy, qz, qw]`` of its centre in the link frame.
+        size: A box's full sides [m].
+        radius: A capsule's or sphere's radius [m].
+        length: A capsule's cylinder length [m] along its local z.
+        friction: Sliding friction of the pad's contacts (``None``: the object's rules).
+        timeconst: Contact time constant [s] (MuJoCo ``solref[0]``; ``None``: the
+            object's).
+        solimp: MuJoCo ``solimp`` of its contacts (``None``: the object's).
+    """
+
+    link: str
+    shape: str
+    pose: np.ndarray
+    size: np.ndarray | None = None
+    radius: float | None = None
+    length: float | None = None
+    friction: float | None = None
+    timeconst: float | None = None
+    solimp: tuple[float, ...] | None = None
+
+
+def _pad_spec(raw: Any, where: str) -> PadSpec:
+    if not isinstance(raw, dict):
+        raise ConfigError(where, raw, "a pad table { link, shape, pose, size or radius, ... }")
+    shape = _toml.string(_toml.require(raw, "shape", where), f"{where}.shape")
+    if shape not in PAD_SHAPES:
+        raise ConfigError(f"{where}.shape", shape, f"one of {sorted(PAD_SHAPES)}")
+    keys = PAD_SHAPES[shape]
+    _toml.check_keys(
+        raw, {"link", "shape", "pose", "friction", "timeconst", "solimp", *keys}, where
+    )
+    dims: dict[str, Any] = {}
+    if "size" in keys:
+        size = _toml.vector(_toml.require(raw, "size", where), f"{where}.size", 3)
+        if np.any(size <= 0) or np.any(size > PAD_MAX):
+            raise ConfigError(f"{where}.size", size.tolist(), f"sides in (0, {PAD_MAX:g}] m")
+        dims["size"] = size
+    for key in ("radius", "length"):
+        if key in keys:
+            dims[key] = _toml.number(_toml.require(raw, key, where), f"{where}.{key}",
+                                     low=1e-4, high=PAD_MAX)  # fmt: skip
+    solimp = raw.get("solimp")
+    if solimp is not None:
+        values = _toml.vector(solimp, f"{where}.solimp")
+        if not (len(values) in (3, 5) and 0 < values[0] <= values[1] < 1 and values[2] > 0):
+            raise ConfigError(f"{where}.solimp", solimp, "[d0, dwidth, width (, mid, power)],"
+                              " 0 < d0 <= dwidth < 1, width > 0 [m]")  # fmt: skip
+        solimp = tuple(float(v) for v in values)
+    return PadSpec(
+        link=_toml.string(_toml.require(raw, "link", where), f"{where}.link"),
+        shape=shape,
+        pose=_toml.pose(_toml.require(raw, "pose", where), f"{where}.pose"),
+        friction=None if raw.get("friction") is None
+        else _toml.number(raw["friction"], f"{where}.friction", low=0.0, high=10.0),
+        timeconst=None if raw.get("timeconst") is None
+        else _toml.number(raw["timeconst"], f"{where}.timeconst", low=1e-4, high=1.0),
+        solimp=solimp,
+        **dims,
+    )  # fmt: skip
+
+
+def _physics(raw: Any, where: str) -> tuple[PadSpec, ...]:
+    """The ``[physics]`` table: its ``pads``."""
+    if not isinstance(raw, dict):
+        raise ConfigError(f"{where}: physics", raw, "a [physics] table")
+    _toml.check_keys(raw, {"pads"}, f"{where}: physics")
+    pads = raw.get("pads", [])
+    if not isinstance(pads, list):
+        raise ConfigError(f"{where}: physics.pads", pads, "a list of pad tables")
+    return tuple(_pad_spec(p, f"{where}: physics.pads[{i}]") for i, p in enumerate(pads))
+
+
 @dataclass(frozen=True)
 class RobotSpec:
     """The contents of a robot TOML file, validated but not yet loaded into Pinocchio.
@@ -159,6 +249,8 @@ class RobotSpec:
         mount: A hand URDF fixed to a frame of ``urdf``, or ``None``.
         mimic: Follower joints of the ``[mimic]`` table (URDF ``<mimic>`` tags are added
             when the robot is loaded).
+        pads: Physics-only contact pads (``[physics] pads``), or none: the URDF's
+            collision geometry makes every contact in physics too.
     """
 
     name: str
@@ -183,11 +275,19 @@ class RobotSpec:
     closing_speed: np.ndarray | None = None
     torsion: float = 0.0
     approach: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
+    pads: tuple[PadSpec, ...] = ()
 
     @classmethod
     def from_file(cls, path: Path) -> RobotSpec:
-        """Read and validate a robot TOML file (README, Files: Robot)."""
-        path = Path(path).resolve()
+        """Read and validate a robot TOML file (see the file formats).
+
+        Args:
+            path: The robot TOML file.
+
+        Returns:
+            The validated spec (not yet loaded into Pinocchio).
+        """
+        path = resolved(path, "robot file")
         raw = _toml.read_toml(path, "robot file")
         where = path.name
         arm = _toml.string_list(_toml.require(raw, "arm_joints", where), f"{where}: arm_joints")
@@ -200,7 +300,7 @@ class RobotSpec:
         n = len(hand)
         known = {
             "name", "description", "urdf", "srdf", "palm_frame", "approach", "arm_joints",
-            "hand_joints", "home", "convex", "padding", "hand", "mount", "mimic",
+            "hand_joints", "home", "convex", "padding", "hand", "mount", "mimic", "physics",
         }  # fmt: skip
         _toml.check_keys(raw, known, f"{where}: ")
         hand_keys = {"c", "b", "w", "mga", "u", "closed", "closing_speed", "torsion"}
@@ -209,9 +309,12 @@ class RobotSpec:
         convex = raw.get("convex", True)
         if not isinstance(convex, bool):
             raise ConfigError(f"{where}: convex", convex, "true or false")
+        description = raw.get("description", "")
+        if not isinstance(description, str):
+            raise ConfigError(f"{where}: description", description, "a string")
         return cls(
             name=_toml.string(_toml.require(raw, "name", where), f"{where}: name"),
-            description=str(raw.get("description", "")),
+            description=description,
             path=path,
             urdf=resolve_path(
                 _toml.string(_toml.require(raw, "urdf", where), f"{where}: urdf"),
@@ -256,6 +359,7 @@ class RobotSpec:
             torsion=_toml.number(
                 table.get("torsion", 0.0), f"{where}: hand.torsion", low=0.0, high=0.1
             ),
+            pads=_physics(raw["physics"], where) if "physics" in raw else (),
         )
 
 
@@ -275,12 +379,24 @@ def _closing_speed(raw: Any, where: str, n: int) -> np.ndarray:
 
 
 def available_robots() -> dict[str, Path]:
-    """Shipped robot files by name."""
+    """Shipped robot files by name.
+
+    Returns:
+        Robot name -> robot TOML path, for every shipped robot.
+    """
     return {path.stem: path for path in sorted(data_dir("robots").glob("*.toml"))}
 
 
 def find_robot_file(name_or_path: str | Path, relative_to: Path | None = None) -> Path:
-    """A shipped robot name (``"panda"``) or a path to a robot TOML."""
+    """A shipped robot name (``"panda"``) or a path to a robot TOML.
+
+    Args:
+        name_or_path: A shipped robot's name or a path to a robot TOML.
+        relative_to: The directory a relative path is read from (a scene file's).
+
+    Returns:
+        The robot TOML's path.
+    """
     text = str(name_or_path)
     robots = available_robots()
     if text in robots:

@@ -13,12 +13,10 @@ the free space's (:class:`~openup_ompl.perception.fit.Silhouette`): those are an
 inequality, zero inside the one-pixel band and a penalty beyond it, that bounds the
 estimate without measuring it. Counted as measurements with the points' variance, the few
 samples a fit pushes past the band (those fits that grew away from the camera, or squared
-off a round section) made their covariance millimetres where the error was centimetres
-(LWA3 can at noise 4: 50 % inside the 2-sigma ellipse with them, 68 % without; box 74 and
-88 %; thin stick 61 and 87 %). Without them the covariance is that of the points and the
-support alone, which bounds the bounded estimate's: conservative where only the outline
-fixes a side (the box's face seen too obliquely to measure: its lateral sigma 2.2 mm,
-median, for an error of 1.0 mm sd).
+off a round section) made their covariance millimetres where the error was centimetres.
+Without them the covariance is that of the points and the support alone, which bounds the
+bounded estimate's: conservative where only the outline fixes a side (a box's face seen
+too obliquely to measure).
 """
 
 from __future__ import annotations

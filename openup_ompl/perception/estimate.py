@@ -24,8 +24,7 @@ __all__ = ["estimate", "estimated_pose", "symmetric_turn"]
 #: section about its z (:func:`_cylinder_axis`).
 ROUND_SECTION = 1.25
 #: The weight of the scene's axis in :func:`_cylinder_axis` against the half-sizes' log
-#: ratios: a tie-breaker (a can of 47 x 23 x 21 mm half-sizes reads 0.87 along its long
-#: axis against 1.77 across it).
+#: ratios: a tie-breaker, small against the log ratio of a can's long and short sides.
 AXIS_PRIOR = 0.2
 
 

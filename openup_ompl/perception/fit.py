@@ -7,8 +7,8 @@ Each point's residual is its first-order (Taubin) distance to the surface, ``(G 
 so this is the distance along the surface normal up to second order: exactly ``rho - a``
 on a cylinder's side). Solina's volume-weighted ``F^e1 - 1`` and the radial distance
 ``|p| (1 - F^(-e1/2))`` both grow with the point's distance from the centre: on a partial
-view they pull the centre away from the seen side (measured: 12 mm on the shipped can,
-for 1.6 mm of noise), while this residual does not.
+view they pull the centre away from the seen side by several times the noise, while this
+residual does not.
 
 ``scipy.optimize.least_squares`` (trust-region reflective, exponents and sizes bounded)
 is started from the cloud's principal axes, once with each principal axis as the
@@ -125,10 +125,10 @@ class Silhouette:
 
     The camera cannot see through the table the object stands on: a sample below the
     table's top hides behind it, and a view from above let the fitted can grow through
-    the table (16 cm at the Panda scene's elevation 60, seed 5), or float 1 cm above it
-    (the top face seen, the bottom hidden). With the ``support``'s height each sample
-    below it adds its depth below it, and one residual, weighted as all the points
-    together, holds the lowest sample on it: the object stands on its support.
+    the table, or float above it (the top face seen, the bottom hidden). With the
+    ``support``'s height each sample below it adds its depth below it, and one residual,
+    weighted as all the points together, holds the lowest sample on it: the object stands
+    on its support.
 
     A ray that measured a surface also says the space before it is free: a sample nearer
     the camera than the depth its pixel measured (on the object or an occluder), by more
@@ -333,7 +333,7 @@ def fit_superquadric(
     varies tenfold between a surface seen face-on and one seen at grazing incidence, and
     the grazing points at the object's edges are those that fix its position across the
     view: unweighted, ``s^2`` (the average noise) understates their noise and the
-    covariance is too small (measured: 85 % instead of 95 % inside the 2-sigma ellipse).
+    covariance is too small.
 
     Args:
         points: The object's points.

@@ -133,8 +133,8 @@ class Perception:
 
 
 #: A fitted half-size within this factor of ``FitOptions.min_size`` is a collapsed fit
-#: (:class:`DegenerateFit`). The closed loops' views fit half-sizes of 17 mm and more;
-#: a camera 75 degrees above the LWA3's can fits 2.0 mm, its centre 79 mm too high.
+#: (:class:`DegenerateFit`): a fit collapsed onto the top a steep view sees ends at the
+#: bound itself, and the closed loops' views fit half-sizes several times larger.
 DEGENERATE_FACTOR = 1.5
 
 

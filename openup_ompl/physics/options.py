@@ -38,8 +38,8 @@ class PhysicsOptions:
         timestep: Simulation step [s] (``implicitfast`` integrator).
         contact_timeconst: Time constant [s] of the object's contacts (MuJoCo's
             ``solref[0]``; the object's contacts use its parameters). MuJoCo's default,
-            0.02 s, let the fingers sink 5-20 mm into a 0.1 kg can under the squeeze;
-            0.004 s (twice the timestep, the stiffest MuJoCo advises) keeps it below ~4 mm.
+            0.02 s, lets the fingers sink into the can under the squeeze; 0.004 s is twice
+            the timestep, the stiffest MuJoCo advises.
         contact_solimp: The object's ``solimp`` (impedance at zero and full depth, the
             depth [m] between them, midpoint, power).
         impratio: MuJoCo's ratio of frictional to normal constraint impedance (with
@@ -90,6 +90,12 @@ class PhysicsOptions:
             drawn from the run's seed (0: none; the rollout is then deterministic and the
             seed only recorded).
         frame_period: Period [s] of the frames kept for the viewer.
+        neighbour_moved_distance: A movable obstacle displaced by more than this [m]
+            between the end of the settle and the end of the rollout was moved.
+        neighbour_tipped_angle: One whose up axis (its own z) turned by more than this
+            [rad] over the same interval was tipped.
+        pads: Use the robot file's contact pads (``[physics] pads``); ``False``: the
+            URDF's collision geometry makes every contact (as before pads existed).
     """
 
     timestep: float = 0.002  # [s]
@@ -125,6 +131,9 @@ class PhysicsOptions:
     object_mass: float | None = None
     object_jitter: float = 0.0  # [m]
     frame_period: float = 0.02  # [s]
+    neighbour_moved_distance: float = 0.02  # [m]
+    neighbour_tipped_angle: float = math.radians(45.0)  # [rad]
+    pads: bool = True
 
     def __post_init__(self) -> None:
         solimp = self.contact_solimp
@@ -145,8 +154,10 @@ class PhysicsOptions:
                 "(d0, dwidth, width, mid, power), 0 < d0 <= dwidth < 1, width > 0,"
                 " 0 < mid < 1, power >= 1",
             )
+        if not isinstance(self.pads, bool):
+            raise ConfigError("PhysicsOptions.pads", self.pads, "True or False")
         for item in fields(self):
-            if item.name == "contact_solimp":
+            if item.name in ("contact_solimp", "pads"):
                 continue
             value = getattr(self, item.name)
             if value is None and item.name in ("object_friction", "object_mass"):
@@ -185,6 +196,12 @@ class PhysicsOptions:
                 "PhysicsOptions.lift_speed",
                 self.lift_speed,
                 f"a lift of at most {PHASE_MAX:g} s (lift_height / lift_speed)",
+            )
+        if self.neighbour_tipped_angle > math.pi:
+            raise ConfigError(
+                "PhysicsOptions.neighbour_tipped_angle",
+                self.neighbour_tipped_angle,
+                "an angle in (0, pi] rad",
             )
         if self.speed > 1:
             raise ConfigError("PhysicsOptions.speed", self.speed, "a fraction in (0, 1]")

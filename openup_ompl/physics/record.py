@@ -19,7 +19,7 @@ import numpy as np
 from openup_ompl import _toml
 from openup_ompl._io import json_safe, read_bytes, read_json, write_atomic
 from openup_ompl.exceptions import ConfigError
-from openup_ompl.plan import number_rows
+from openup_ompl.plan_checks import number_rows
 
 __all__ = [
     "EXECUTION_FORMAT",
@@ -34,7 +34,7 @@ __all__ = [
 EXECUTION_FORMAT = "openup-execution/1"
 
 #: The rollout's phases, in order (:mod:`~openup_ompl.physics.rollout`).
-PHASES = ("settle", "reach", "close", "lift", "hold")
+PHASES = ("settle", "reach", "close", "squeeze", "lift", "hold")
 
 
 @dataclass
@@ -75,13 +75,28 @@ class ExecutionRecord:
             "robot_object_mm"}``: MuJoCo's contacts are soft; beyond
             ``PhysicsOptions.max_penetration`` between object and obstacle the trial is
             ``"jammed"`` (the hand forced the object into the scene).
-        phases: Duration of each phase [s]: ``settle, reach, close, lift, hold``.
+        phases: Duration of each phase [s]: ``settle, reach, close, squeeze, lift,
+            hold`` (files written before the squeeze was its own phase count it in
+            ``close``).
         plan: What was executed: ``{"robot", "planner", "seed", "u", "rows"}``.
         options: The :class:`~openup_ompl.physics.options.PhysicsOptions` used.
         steps: Simulation steps.
+        neighbours: Per movable obstacle (``movable = true``: a free body in physics), in
+            the scene's order, how the rollout disturbed it from its pose at the end of
+            the settle to the end of the rollout: ``{"name", "moved_mm"`` (its centre's
+            displacement), ``"tilt_deg"`` (the turn of its up axis, its own z),
+            ``"moved"`` (beyond ``PhysicsOptions.neighbour_moved_distance``, 2 cm),
+            ``"tipped"`` (beyond ``neighbour_tipped_angle``, 45 deg), ``"touched"`` (the
+            first robot contact ``{"link", "time_s", "phase"}`` or ``None``)``}``.
+            A robot link touching a neighbour does not fail the trial (it is no
+            ``obstacle contact``); these fields report it.
+        neighbour_moved: Some neighbour was moved.
+        neighbour_tipped: Some neighbour was tipped.
+        neighbour_touched: The robot touched some neighbour.
         frames: Sampled rollout for the viewer: ``{"period_s", "joint_names", "q",
-            "object", "phase"}`` (``object``: ``[x, y, z, qx, qy, qz, qw]`` rows), or
-            ``None`` when not kept (sweeps).
+            "object", "phase", "neighbours"}`` (``object``: ``[x, y, z, qx, qy, qz, qw]``
+            rows; ``neighbours``: such rows per movable obstacle's name), or ``None`` when
+            not kept (sweeps).
         source: The executed plan file's contents, kept with the frames so that the file
             replays alone (``openup-ompl show``); ``None`` without frames.
     """
@@ -107,9 +122,20 @@ class ExecutionRecord:
     frames: dict[str, Any] | None = field(default=None, repr=False)
     source: dict[str, Any] | None = field(default=None, repr=False)
     jitter: dict[str, float] = field(default_factory=lambda: {"dx": 0.0, "dy": 0.0})
+    neighbours: list[dict[str, Any]] = field(default_factory=list)
+    neighbour_moved: bool = False
+    neighbour_tipped: bool = False
+    neighbour_touched: bool = False
 
     def to_dict(self, frames: bool = True) -> dict[str, Any]:
-        """The file's contents (``frames=False``: without the rollout frames)."""
+        """The file's contents (``frames=False``: without the rollout frames).
+
+        Args:
+            frames: Include the rollout's frames (every 20 ms).
+
+        Returns:
+            The ``openup-execution/1`` contents, JSON-ready (see the file formats).
+        """
         data = {"format": EXECUTION_FORMAT, **asdict(self)}
         if not frames:
             data.pop("frames")
@@ -118,7 +144,15 @@ class ExecutionRecord:
 
 
 def write_execution(record: ExecutionRecord, out_dir: str | Path) -> Path:
-    """Write ``out_dir/execution.json``; returns its path."""
+    """Write ``out_dir/execution.json``; returns its path.
+
+    Args:
+        record: The rollout's record.
+        out_dir: The directory to write into.
+
+    Returns:
+        The path of ``execution.json``.
+    """
     text = json.dumps(record.to_dict(), indent=1, allow_nan=False) + "\n"
     return write_atomic(Path(out_dir) / "execution.json", text)
 
@@ -127,7 +161,14 @@ def is_execution(path: str | Path) -> bool:
     """Whether ``path`` is a JSON object of the execution format's family (any version,
     any layout: for the command line to pick its reader, whose errors then name the
     version it expects). A file :func:`~openup_ompl._io.read_bytes` refuses (a device,
-    one too large) is not one: the plan reader then says why."""
+    one too large) is not one: the plan reader then says why.
+
+    Args:
+        path: The file to look at.
+
+    Returns:
+        True if its ``format`` names the execution family.
+    """
     try:
         data = json.loads(read_bytes(path, "execution file"))
     except (OSError, ValueError, RecursionError):  # ConfigError is a ValueError
@@ -138,6 +179,12 @@ def is_execution(path: str | Path) -> bool:
 
 def read_execution(path: str | Path) -> dict[str, Any]:
     """Read an ``execution.json`` and check it (:func:`check_execution`).
+
+    Args:
+        path: The ``execution.json`` file.
+
+    Returns:
+        Its checked contents.
 
     Raises:
         ConfigError: Not a readable execution file, or a key missing or holding a bad
@@ -171,6 +218,10 @@ def check_execution(data: dict[str, Any], where: str = "") -> None:
     (``frames`` and ``source`` may be absent) with its JSON type, and the values the viewer
     reads (``offset``, ``first_contact``, ``frames``). ``source`` is checked where it is
     replayed (:meth:`~openup_ompl.plan.PlanFile.from_dict`).
+
+    Args:
+        data: The file's parsed contents.
+        where: Prefix of error locations (the file name and ``": "``).
 
     Raises:
         ConfigError: A key missing or holding a bad value, located at ``where + key``.

@@ -19,11 +19,18 @@ if TYPE_CHECKING:
 
     from openup_ompl.scene import Problem, Shape
 
-__all__ = ["add_scene", "add_shape", "mujoco_quat", "scene_spec"]
+__all__ = ["add_free_body", "add_scene", "add_shape", "mujoco_quat", "scene_spec"]
 
 
 def mujoco_quat(pose: Sequence[float] | np.ndarray) -> np.ndarray:
-    """``[qw, qx, qy, qz]`` of a ``[x, y, z, qx, qy, qz, qw]`` pose."""
+    """``[qw, qx, qy, qz]`` of a ``[x, y, z, qx, qy, qz, qw]`` pose.
+
+    Args:
+        pose: ``[x, y, z, qx, qy, qz, qw]`` [m].
+
+    Returns:
+        The unit quaternion, scalar first (MuJoCo's order).
+    """
     q = np.asarray(pose, dtype=float)[3:7]
     return np.array([q[3], q[0], q[1], q[2]])
 
@@ -87,6 +94,13 @@ def scene_spec(problem: Problem, *, free_object: bool = False) -> mujoco.MjSpec:
 
     The object's mass and friction are the scene's (``[object] mass``, ``friction``); an
     obstacle's friction is its own ``friction`` key, else MuJoCo's default.
+
+    Args:
+        problem: The scene.
+        free_object: Give the object a free joint.
+
+    Returns:
+        The MuJoCo spec (not compiled).
     """
     import mujoco
 
@@ -106,19 +120,58 @@ def add_scene(
     """Add a scene's obstacles (static geoms of the world body) and its object (a geom of
     the body ``"object"``, free if ``free_object``) to ``spec``; returns the object's
     body. ``object_attributes`` override the object geom's (``friction``, ``mass``,
-    ``condim``, ...)."""
+    ``condim``, ...).
+
+    Args:
+        spec: The MuJoCo spec to add to.
+        obstacles: The scene's obstacles (static geoms).
+        scene_object: The object, if any.
+        free_object: Give the object a free joint (physics) rather than fixing it
+            (the camera).
+        **object_attributes: MuJoCo geom attributes of the object.
+
+    Returns:
+        The object's body, or ``None`` without an object.
+    """
     for obstacle in obstacles:
         add_shape(spec.worldbody, obstacle, spec=spec, **_contact(obstacle))
     if scene_object is None:
         return None
-    pose = np.asarray(scene_object.pose, dtype=float)
+    if not free_object:
+        return _add_body(spec, scene_object, "object", **object_attributes)
+    return add_free_body(spec, scene_object, "object", **object_attributes)
+
+
+def add_free_body(
+    spec: mujoco.MjSpec, shape: Shape, name: str, **attributes: Any
+) -> mujoco.MjsBody:
+    """Add ``shape`` as the geom of a free body ``name`` (a free joint of that name) at
+    the shape's pose, with its ``mass`` and ``friction``; ``attributes`` override the
+    geom's. Returns the body.
+
+    Args:
+        spec: The MuJoCo spec to add to.
+        shape: The shape (its pose, ``mass`` [kg] and ``friction``).
+        name: The body's and its free joint's name.
+        **attributes: MuJoCo geom attributes overriding the shape's.
+
+    Returns:
+        The new body.
+    """
+    body = _add_body(spec, shape, name, **attributes)
+    body.add_freejoint(name=name)
+    return body
+
+
+def _add_body(spec: mujoco.MjSpec, shape: Shape, name: str, **attributes: Any) -> mujoco.MjsBody:
+    """``shape`` as the geom of a body ``name`` of the world body, at the shape's pose."""
+    pose = np.asarray(shape.pose, dtype=float)
     body = spec.worldbody.add_body(
-        name="object", pos=pose[:3].tolist(), quat=mujoco_quat(pose).tolist()
+        name=name, pos=pose[:3].tolist(), quat=mujoco_quat(pose).tolist()
     )
-    if free_object:
-        body.add_freejoint(name="object")
-    attributes = {"mass": scene_object.mass, **_contact(scene_object), **object_attributes}
-    add_shape(body, scene_object, local=True, spec=spec, **attributes)
+    add_shape(
+        body, shape, local=True, spec=spec, **{"mass": shape.mass, **_contact(shape), **attributes}
+    )
     return body
 
 

@@ -24,7 +24,15 @@ __all__ = ["physics_judge", "physics_run", "physics_trial"]
 
 
 def physics_trial(record: dict[str, Any]) -> dict[str, Any]:
-    """A sweep trial of an execution record's contents (``to_dict(frames=False)``)."""
+    """A sweep trial of an execution record's contents (``to_dict(frames=False)``).
+
+    Args:
+        record: An execution record as a dictionary, without frames.
+
+    Returns:
+        The trial's row: the offset (``dx``, ``dy`` [m], ``yaw`` [rad]), ``success``,
+        ``collision`` (an obstacle touched) and the record's other fields.
+    """
     offset = record["offset"]
     return {
         "dx": offset["dx"],
@@ -56,6 +64,16 @@ def physics_run(
     a task process). The kinematic grasp test's settings (``friction``, ``torsion``) are
     accepted and unused: physics has its own friction (the scene's).
 
+    Args:
+        seed: The planning seed.
+        scene: The scene file's path.
+        u: The uncertainty planned with, in [0, 1].
+        planner: The planner's name.
+        time_limit: The planning time limit [s].
+        perturbations: ``(dx [m], dy [m], yaw [rad])`` object offsets to execute against.
+        open_arrival: Plan with the open-arrival law.
+        **_kinematic: The kinematic test's settings, unused.
+
     Returns:
         ``{"u", "seed", "planned", "error", "solve_time", "rows", "physics", "trials"}``.
     """
@@ -71,7 +89,7 @@ def physics_run(
     record["physics"] = dict(options.__dict__)
     if plan is None:
         return record
-    rollout = Rollout(plan.to_dict(), options)
+    rollout = Rollout(plan, options)
     record["trials"] = []
     for dx, dy, yaw in perturbations:
         try:
@@ -90,6 +108,11 @@ def physics_judge(setup: GraspPlanningSetup, plan: Plan, truth: Problem) -> dict
     world whose object stands where it truly is (its full pose: the estimate's height and
     tilt errors are not carried into the world, the object rests as it really does).
 
+    Args:
+        setup: The setup the plan was made with (at the estimate).
+        plan: The plan.
+        truth: The true scene.
+
     Returns:
         The rollout's sweep trial (:func:`physics_trial`); a diverged simulation is a
         failed trial with ``cause`` ``"diverged"``.
@@ -97,16 +120,19 @@ def physics_judge(setup: GraspPlanningSetup, plan: Plan, truth: Problem) -> dict
     from openup_ompl.exceptions import SimulationDiverged
     from openup_ompl.perception.closed_loop import planar_offset
     from openup_ompl.physics.rollout import Rollout
+    from openup_ompl.scene import Shape
 
     estimate, true = setup.problem.object, truth.object
     assert estimate is not None and true is not None
-    data = plan.to_dict()
-    data["scene"] = {**data["scene"], "object": true.to_table()}
     # The world holds the truth, so the rollout's own offset is 0; the trial reports the
-    # truth's planar offset from the estimate, as the kinematic judge does.
+    # truth's planar offset from the estimate, as the kinematic judge does. The truth is
+    # taken as a plan file holds an object (its table read back, the quaternion normalised
+    # once more), which keeps the verdicts of the closed-loop runs bit for bit.
     dx, dy, yaw = planar_offset(estimate, true)
+    true = Shape.from_table(true.to_table(), "truth object", is_object=True)
     try:
-        record = Rollout(data).run((0.0, 0.0, 0.0), frames=False).to_dict(False)
+        rollout = Rollout(plan, scene_object=true)
+        record = rollout.run((0.0, 0.0, 0.0), frames=False).to_dict(False)
     except SimulationDiverged as error:
         trial = _diverged(error)
     else:

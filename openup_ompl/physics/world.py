@@ -7,15 +7,18 @@ Every arm and hand joint gets a position actuator
 (:class:`~openup_ompl.physics.options.PhysicsOptions` gains; the URDF's ``effort`` as
 the arm's force limit, the squeeze force or torque as the hand's), every robot body
 gravity compensation (the controller of a real arm and hand cancels their weight), every
-joint armature. The obstacles are static geoms and the object a free body
-(:func:`~openup_ompl.physics.shapes.add_scene`).
+joint armature. The fixed obstacles are static geoms, the object a free body
+(:func:`~openup_ompl.physics.shapes.add_scene`), and every movable obstacle (``movable =
+true``: a neighbour the hand may push or tip) a free body of its own with its ``mass`` and
+``friction``. :func:`build_world` assembles them in four steps: the robot, the object, the
+neighbours, the contacts.
 
 Robot geoms collide with the scene, not with each other (the planner checked
 self-collision; MuJoCo's URDF importer would otherwise let neighbouring links that the
 SRDF excludes push each other apart).
 
-Numerics: the ``implicitfast`` integrator (Euler without armature drifted ~0.1 rad on the
-Panda and dropped the object) and the dense constraint Jacobian (``mjJAC_DENSE``: the
+Numerics: the ``implicitfast`` integrator (Euler without armature drifted and dropped the
+object) and the dense constraint Jacobian (``mjJAC_DENSE``: the
 sparse path is never taken, see the README on MuJoCo issue 3767).
 """
 
@@ -23,22 +26,32 @@ from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from openup_ompl.exceptions import ConfigError
+from openup_ompl.exceptions import ConfigError, OpenUpError
 from openup_ompl.physics.options import PhysicsOptions
-from openup_ompl.physics.shapes import add_scene
+from openup_ompl.physics.shapes import add_free_body, add_scene, mujoco_quat
 from openup_ompl.scene import Shape
 from openup_ompl.urdf import absolute_meshes, urdf_mimic, urdf_tree
 
 if TYPE_CHECKING:
     import mujoco
 
-__all__ = ["COMPILER", "World", "build_world", "plan_shapes", "urdf_spec"]
+    from openup_ompl.robot_file import PadSpec, RobotSpec
+
+__all__ = [
+    "COMPILER",
+    "RobotTable",
+    "World",
+    "build_world",
+    "make_world",
+    "plan_shapes",
+    "urdf_spec",
+]
 
 #: Added to the URDF for MuJoCo's importer: keep mesh paths, drop visual geometry, accept
 #: the URDFs' inertias as they are, keep every link a body (the palm frame among them).
@@ -46,8 +59,12 @@ COMPILER = (
     '<compiler strippath="false" discardvisual="true" balanceinertia="true" fusestatic="false"/>'
 )
 
-#: Geom classes of :attr:`World.geom_kind`.
-ROBOT, OBSTACLE, OBJECT, FIXED_ROBOT = 0, 1, 2, 3
+#: Geom classes of :attr:`World.geom_kind` (``NEIGHBOUR``: a movable obstacle's geom).
+ROBOT, OBSTACLE, OBJECT, FIXED_ROBOT, NEIGHBOUR = 0, 1, 2, 3, 4
+#: Body name prefix of a movable obstacle (``"neighbour/<shape name>"``).
+NEIGHBOUR_BODY = "neighbour/"
+#: Geom name prefix of a contact pad (``"pad:<link>:<index>"``).
+PAD = "pad:"
 
 
 def urdf_spec(urdf: str | Path, package_dirs: list[str]) -> tuple[mujoco.MjSpec, ET.Element]:
@@ -115,12 +132,14 @@ class World:
             scalar-first quaternion).
         object_dof: ``qvel`` address of the free joint.
         object_geom: Geom index of the object.
-        geom_kind: Per geom: :data:`ROBOT`, :data:`OBSTACLE`, :data:`OBJECT` or
-            :data:`FIXED_ROBOT` (robot links welded to the world).
+        geom_kind: Per geom: :data:`ROBOT`, :data:`OBSTACLE`, :data:`OBJECT`,
+            :data:`FIXED_ROBOT` (robot links welded to the world) or :data:`NEIGHBOUR`.
         geom_link: Per geom: the link (body) or shape name.
         mimic: URDF followers ``(follower, leader, multiplier, offset)`` as indices into
             :attr:`joint_names`.
         object_shape: The object as placed in the plan's scene (the nominal pose).
+        neighbours: The movable obstacles (free bodies), in the scene's order.
+        neighbour_body: Body index of each of :attr:`neighbours`.
     """
 
     model: Any
@@ -143,6 +162,8 @@ class World:
     geom_link: list[str]
     mimic: list[tuple[int, int, float, float]]
     object_shape: Shape
+    neighbours: list[Shape] = field(default_factory=list)
+    neighbour_body: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
 
 
 def _joint_limits(root: ET.Element) -> dict[str, tuple[float, float]]:
@@ -158,6 +179,71 @@ def _joint_limits(root: ET.Element) -> dict[str, tuple[float, float]]:
     return limits
 
 
+def robot_spec(name: str) -> RobotSpec | None:
+    """The shipped or installed robot file of ``name``, or ``None`` if none is found."""
+    from openup_ompl.robot_file import RobotSpec, find_robot_file
+
+    try:
+        return RobotSpec.from_file(find_robot_file(name))
+    except OpenUpError:  # a robot this package does not know
+        return None
+
+
+@dataclass(frozen=True)
+class RobotTable:
+    """What the world needs of the robot: a plan file's ``robot`` table, typed.
+
+    Attributes:
+        name: The robot's name.
+        urdf: Its URDF file.
+        package_dirs: Directories resolving ``package://`` mesh URIs.
+        palm_frame: The palm frame's link.
+        joint_names: Every joint, in the order of a path row.
+        arm_joints: The arm's joints.
+        hand_joints: The hand's joints (driven, then followers).
+        pads: Physics-only contact pads (its robot file's ``[physics] pads``).
+    """
+
+    name: str
+    urdf: str
+    package_dirs: tuple[str, ...]
+    palm_frame: str
+    joint_names: tuple[str, ...]
+    arm_joints: tuple[str, ...]
+    hand_joints: tuple[str, ...]
+    pads: tuple[PadSpec, ...] = ()
+
+    @classmethod
+    def from_table(cls, table: dict[str, Any]) -> RobotTable:
+        """A plan file's ``robot`` table (missing keys read as empty), with the pads of the
+        robot file found by its name (none if no file is found)."""
+        spec = robot_spec(str(table.get("name")))
+        return cls(
+            name=str(table.get("name")),
+            urdf=str(table.get("urdf") or ""),
+            package_dirs=tuple(table.get("package_dirs") or ()),
+            palm_frame=str(table.get("palm_frame")),
+            joint_names=tuple(table.get("joint_names") or ()),
+            arm_joints=tuple(table.get("arm_joints") or ()),
+            hand_joints=tuple(table.get("hand_joints") or ()),
+            pads=spec.pads if spec is not None else (),
+        )
+
+    @classmethod
+    def from_robot(cls, robot: Any) -> RobotTable:
+        """A loaded :class:`~openup_ompl.robot.Robot`'s (what its plans' files hold)."""
+        return cls(
+            name=robot.spec.name,
+            urdf=str(robot.urdf),
+            package_dirs=tuple(str(p) for p in robot.package_dirs),
+            palm_frame=robot.spec.palm_frame,
+            joint_names=tuple(robot.joint_names),
+            arm_joints=tuple(robot.spec.arm_joints),
+            hand_joints=tuple(robot.hand_joints),
+            pads=tuple(robot.spec.pads),
+        )
+
+
 def build_world(data: dict[str, Any], options: PhysicsOptions | None = None) -> World:
     """The physics world of a plan file's contents (:func:`~openup_ompl.plan.read_plan`).
 
@@ -165,16 +251,65 @@ def build_world(data: dict[str, Any], options: PhysicsOptions | None = None) -> 
         ConfigError: A missing URDF, a joint or the palm frame absent from it, or a
             malformed scene.
     """
-    import mujoco
-
-    options = options or PhysicsOptions()
-    robot = data.get("robot") or {}
-    names = list(robot.get("joint_names") or [])
-    arm_names = list(robot.get("arm_joints") or [])
-    hand_names = list(robot.get("hand_joints") or [])
-    spec, root = urdf_spec(robot.get("urdf") or "", list(robot.get("package_dirs") or []))
     obstacles, scene_object = plan_shapes(data)
+    robot = RobotTable.from_table(data.get("robot") or {})
+    return make_world(robot, obstacles, scene_object, options)
+
+
+def make_world(
+    robot: RobotTable,
+    obstacles: list[Shape] | tuple[Shape, ...],
+    scene_object: Shape,
+    options: PhysicsOptions | None = None,
+) -> World:
+    """The physics world of a robot and a scene: the robot, the object, the neighbours
+    (movable obstacles) and the contacts between them (module docstring).
+
+    Raises:
+        ConfigError: A missing URDF, a joint or the palm frame absent from it.
+    """
+    options = options or PhysicsOptions()
+    spec, root = urdf_spec(robot.urdf, list(robot.package_dirs))
     limits = _joint_limits(root)
+    _add_robot(spec, robot, limits, options)
+    pads = robot.pads if options.pads else ()
+    _add_pads(spec, pads, options)
+    if options.object_mass is not None:
+        scene_object = replace(scene_object, mass=options.object_mass)
+    if options.object_friction is not None:
+        scene_object = replace(scene_object, friction=options.object_friction)
+    fixed = [shape for shape in obstacles if not shape.movable]
+    neighbours = [shape for shape in obstacles if shape.movable]
+    _add_object(spec, fixed, scene_object, options)
+    _add_neighbours(spec, neighbours, options)
+    _set_contacts(spec)
+    if robot.palm_frame not in {body.name for body in spec.bodies}:
+        raise ConfigError("plan robot.palm_frame", robot.palm_frame, "a link of the URDF")
+    try:
+        model = spec.compile()
+    except ValueError as error:
+        raise ConfigError(
+            "plan robot.urdf", robot.urdf, f"a model MuJoCo compiles ({error})"
+        ) from None
+    world = _index(model, robot, root, limits, scene_object, neighbours, options)
+    if pads:
+        _pad_contacts(world)
+    return world
+
+
+def _add_robot(
+    spec: mujoco.MjSpec,
+    robot: RobotTable,
+    limits: dict[str, tuple[float, float]],
+    options: PhysicsOptions,
+) -> None:
+    """Numerics, gravity compensation and a position actuator per joint of ``robot``.
+
+    Raises:
+        ConfigError: A joint of ``joint_names`` the URDF lacks, or an arm or hand joint
+            not in ``joint_names``.
+    """
+    import mujoco
 
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     spec.option.jacobian = mujoco.mjtJacobian.mjJAC_DENSE
@@ -183,23 +318,21 @@ def build_world(data: dict[str, Any], options: PhysicsOptions | None = None) -> 
     # creeping under a held load (MuJoCo's documentation for grasping).
     spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
     spec.option.impratio = options.impratio
-    for geom in spec.geoms:
-        geom.contype, geom.conaffinity = 1, 0
     for body in spec.bodies:
         if body.name != "world":
             body.gravcomp = 1.0
     joints = {joint.name: joint for joint in spec.joints}
-    for name in names:
+    for name in robot.joint_names:
         if name not in joints:
             raise ConfigError("plan robot.joint_names", name, f"a joint of the URDF {list(joints)}")
-    for name in (*arm_names, *hand_names):
-        if name not in names:
+    for name in (*robot.arm_joints, *robot.hand_joints):
+        if name not in robot.joint_names:
             raise ConfigError("plan robot.arm_joints/hand_joints", name, "one of joint_names")
-    arm_set = set(arm_names)
-    for name in names:
+    arm_set = set(robot.arm_joints)
+    for name in robot.joint_names:
         joint = joints[name]
         # URDF <dynamics> are dropped: the servo's gains stand for the drive (the Allegro
-        # URDF's friction of 5-12 N m would hold every finger still).
+        # URDF's joint friction would hold every finger still).
         joint.damping, joint.frictionloss = [0.0, 0.0, 0.0], 0.0
         prismatic = joint.type == mujoco.mjtJoint.mjJNT_SLIDE
         velocity, effort = limits.get(name, (math.inf, math.inf))
@@ -215,60 +348,155 @@ def build_world(data: dict[str, Any], options: PhysicsOptions | None = None) -> 
                 else (options.hand_kp, options.hand_kv)
             )
             force = options.squeeze_force if prismatic else options.squeeze_torque
-        actuator = spec.add_actuator(name=name, target=name)
-        actuator.trntype = mujoco.mjtTrn.mjTRN_JOINT
-        actuator.gaintype = mujoco.mjtGain.mjGAIN_FIXED
-        actuator.biastype = mujoco.mjtBias.mjBIAS_AFFINE
-        actuator.gainprm[0] = kp
-        actuator.biasprm[:3] = [0.0, -kp, -kv]
-        actuator.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
-        actuator.forcerange = [-force, force]
-    if options.object_mass is not None:
-        scene_object = _with(scene_object, mass=options.object_mass)
-    if options.object_friction is not None:
-        scene_object = _with(scene_object, friction=options.object_friction)
+        _add_servo(spec, name, kp, kv, force)
+
+
+def _add_servo(spec: mujoco.MjSpec, joint: str, kp: float, kv: float, force: float) -> None:
+    """A position actuator on ``joint``: ``kp (target - q) - kv qdot`` within ``force``."""
+    import mujoco
+
+    actuator = spec.add_actuator(name=joint, target=joint)
+    actuator.trntype = mujoco.mjtTrn.mjTRN_JOINT
+    actuator.gaintype = mujoco.mjtGain.mjGAIN_FIXED
+    actuator.biastype = mujoco.mjtBias.mjBIAS_AFFINE
+    actuator.gainprm[0] = kp
+    actuator.biasprm[:3] = [0.0, -kp, -kv]
+    actuator.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+    actuator.forcerange = [-force, force]
+
+
+def _add_object(
+    spec: mujoco.MjSpec, fixed: list[Shape], scene_object: Shape, options: PhysicsOptions
+) -> None:
+    """The fixed obstacles (static geoms) and the object (a free body) with its contact
+    parameters."""
     # condim 4: the object resists spinning about a contact normal (a pinched can);
     # priority 1: its friction and contact softness are those of every contact it makes
     # (MuJoCo would otherwise take the larger friction, 1.0 for the robot's and the table's).
-    add_scene(
-        spec,
-        obstacles,
-        scene_object,
-        free_object=True,
-        condim=4,
-        priority=1,
-        solref=[options.contact_timeconst, 1.0],
-        solimp=list(options.contact_solimp),
-    )
-    for geom in spec.geoms:
-        if geom.parent.name in ("world", "object"):
-            geom.contype, geom.conaffinity = 1, 1
-    palm = str(robot.get("palm_frame"))
-    if palm not in {body.name for body in spec.bodies}:
-        raise ConfigError("plan robot.palm_frame", palm, "a link of the URDF")
-    try:
-        model = spec.compile()
-    except ValueError as error:
-        raise ConfigError(
-            "plan robot.urdf", robot.get("urdf"), f"a model MuJoCo compiles ({error})"
-        ) from None
+    add_scene(spec, fixed, scene_object, free_object=True, **_stiff(options), condim=4)
 
+
+def _add_neighbours(spec: mujoco.MjSpec, neighbours: list[Shape], options: PhysicsOptions) -> None:
+    """Every movable obstacle a free body (``neighbour/<name>``) with its mass and
+    friction, and the object's contact softness (a finger does not sink into it)."""
+    for shape in neighbours:
+        add_free_body(spec, shape, NEIGHBOUR_BODY + shape.name, **_stiff(options))
+
+
+def _stiff(options: PhysicsOptions) -> dict[str, Any]:
+    """Geom attributes of a free body: its own friction and softness in its contacts."""
+    return {
+        "priority": 1,
+        "solref": [options.contact_timeconst, 1.0],
+        "solimp": list(options.contact_solimp),
+    }
+
+
+def _set_contacts(spec: mujoco.MjSpec) -> None:
+    """Robot geoms collide with the scene, not with each other; scene geoms (static, the
+    object, the neighbours) with everything."""
+    for geom in spec.geoms:
+        scene = geom.parent.name in ("world", "object") or geom.parent.name.startswith(
+            NEIGHBOUR_BODY
+        )
+        geom.contype, geom.conaffinity = (1, 1) if scene else (1, 0)
+
+
+def _add_pads(spec: mujoco.MjSpec, pads: tuple[PadSpec, ...], options: PhysicsOptions) -> None:
+    """Each pad a massless geom ``pad:<link>:<i>`` of its link's body, with its own
+    friction and softness where it gives them (then it outranks the object's priority).
+
+    Raises:
+        ConfigError: A pad on a link the URDF lacks.
+    """
+
+    bodies = {body.name: body for body in spec.bodies}
+    for i, pad in enumerate(pads):
+        if pad.link not in bodies:
+            raise ConfigError(f"robot physics.pads[{i}].link", pad.link, "a link of the URDF")
+        kind, size = _pad_geom(pad)
+        extra: dict[str, Any] = {}
+        if pad.friction is not None:
+            extra["friction"] = [pad.friction, 0.005, 0.0001]
+        if pad.timeconst is not None:
+            extra["solref"] = [max(pad.timeconst, 2 * options.timestep), 1.0]
+        if pad.solimp is not None:
+            extra["solimp"] = [*pad.solimp, *(0.5, 2.0)[len(pad.solimp) - 3 :]]
+        if extra:
+            extra["priority"] = 2
+        bodies[pad.link].add_geom(
+            name=f"{PAD}{pad.link}:{i}", type=kind, size=size, mass=0.0,
+            pos=pad.pose[:3].tolist(), quat=mujoco_quat(pad.pose).tolist(), **extra,
+        )  # fmt: skip
+
+
+def _pad_geom(pad: PadSpec) -> tuple[Any, list[float]]:
+    """MuJoCo's geom type and size (half sizes, half length) of a pad."""
+    import mujoco
+
+    if pad.shape == "box":
+        assert pad.size is not None
+        return mujoco.mjtGeom.mjGEOM_BOX, (pad.size / 2).tolist()
+    assert pad.radius is not None
+    if pad.shape == "sphere":
+        return mujoco.mjtGeom.mjGEOM_SPHERE, [pad.radius, 0.0, 0.0]
+    assert pad.length is not None
+    return mujoco.mjtGeom.mjGEOM_CAPSULE, [pad.radius, pad.length / 2, 0.0]
+
+
+def _pad_contacts(world: World) -> None:
+    """Contact bits once pads exist (MuJoCo collides two geoms when ``contype`` of one
+    meets ``conaffinity`` of the other): fixed obstacles (1, 1); the object and the
+    neighbours (5, 6); robot geoms (3, 0); a pad (2, 0): the object and neighbours only;
+    a URDF geom of a pad's link that contains the pad's centre (1, 0): obstacles only.
+    Robot geoms never meet each other; every pair that met without pads still meets."""
+    model, kinds = world.model, world.geom_kind
+    pads = [g for g in range(model.ngeom) if model.geom(g).name.startswith(PAD)]
+    scene = np.isin(kinds, (OBJECT, NEIGHBOUR))
+    model.geom_contype[scene], model.geom_conaffinity[scene] = 5, 6
+    robot = np.isin(kinds, (ROBOT, FIXED_ROBOT))
+    model.geom_contype[robot], model.geom_conaffinity[robot] = 3, 0
+    for p in pads:
+        model.geom_contype[p] = 2
+        for g in np.flatnonzero(model.geom_bodyid == model.geom_bodyid[p]):
+            if g not in pads and _contains(model, int(g), model.geom_pos[p]):
+                model.geom_contype[g] = 1
+
+
+def _contains(model: Any, geom: int, point: np.ndarray) -> bool:
+    """Whether ``point`` (body frame) lies in the bounding box of ``geom``."""
+    import mujoco
+
+    rotation = np.zeros(9)
+    mujoco.mju_quat2Mat(rotation, model.geom_quat[geom])
+    local = rotation.reshape(3, 3).T @ (point - model.geom_pos[geom])
+    centre, half = model.geom_aabb[geom][:3], model.geom_aabb[geom][3:]
+    return bool(np.all(np.abs(local - centre) <= half + 1e-9))
+
+
+def _index(
+    model: Any,
+    robot: RobotTable,
+    root: ET.Element,
+    limits: dict[str, tuple[float, float]],
+    scene_object: Shape,
+    neighbours: list[Shape],
+    options: PhysicsOptions,
+) -> World:
+    """The :class:`World` of a compiled model: the indices a rollout reads."""
+    import mujoco
+
+    names = list(robot.joint_names)
     jid = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n) for n in names]
     index = {n: i for i, n in enumerate(names)}
     object_joint = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, "object")
     object_body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "object")
-    kinds = np.empty(model.ngeom, dtype=np.intp)
-    links = []
-    for g in range(model.ngeom):
-        body = int(model.geom_bodyid[g])
-        if body == 0:
-            kinds[g], name = OBSTACLE, model.geom(g).name
-        elif body == object_body:
-            kinds[g], name = OBJECT, model.geom(g).name
-        else:
-            kinds[g] = ROBOT if model.body_weldid[body] != 0 else FIXED_ROBOT
-            name = model.body(body).name
-        links.append(name)
+    neighbour_body = np.array(
+        [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, NEIGHBOUR_BODY + s.name)
+         for s in neighbours],
+        dtype=np.intp,
+    )  # fmt: skip
+    kinds, links = _geom_kinds(model, object_body, set(neighbour_body.tolist()))
     mimic = [
         (index[m.joint], index[m.leader], m.multiplier, m.offset)
         for m in urdf_mimic(root)
@@ -276,6 +504,7 @@ def build_world(data: dict[str, Any], options: PhysicsOptions | None = None) -> 
     ]
     limited = model.jnt_limited[jid].astype(bool)
     ranges = model.jnt_range[jid]
+    velocity = [limits.get(n, (math.inf, 0.0))[0] for n in names]
     return World(
         model=model,
         joint_names=names,
@@ -285,18 +514,15 @@ def build_world(data: dict[str, Any], options: PhysicsOptions | None = None) -> 
             [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, n) for n in names],
             dtype=np.intp,
         ),
-        arm=np.array([index[n] for n in arm_names], dtype=np.intp),
-        hand=np.array([index[n] for n in hand_names], dtype=np.intp),
+        arm=np.array([index[n] for n in robot.arm_joints], dtype=np.intp),
+        hand=np.array([index[n] for n in robot.hand_joints], dtype=np.intp),
         prismatic=model.jnt_type[jid] == mujoco.mjtJoint.mjJNT_SLIDE,
         velocity_limit=np.array(
-            [
-                v if math.isfinite(v) else options.velocity_limit
-                for v in (limits.get(n, (math.inf, 0.0))[0] for n in names)
-            ]
+            [v if math.isfinite(v) else options.velocity_limit for v in velocity]
         ),
         lower=np.where(limited, ranges[:, 0], -np.inf),
         upper=np.where(limited, ranges[:, 1], np.inf),
-        palm_body=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, palm),
+        palm_body=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, robot.palm_frame),
         object_body=object_body,
         object_qpos=int(model.jnt_qposadr[object_joint]),
         object_dof=int(model.jnt_dofadr[object_joint]),
@@ -305,10 +531,27 @@ def build_world(data: dict[str, Any], options: PhysicsOptions | None = None) -> 
         geom_link=links,
         mimic=mimic,
         object_shape=scene_object,
+        neighbours=list(neighbours),
+        neighbour_body=neighbour_body,
     )
 
 
-def _with(shape: Shape, **changes: Any) -> Shape:
-    import dataclasses
-
-    return dataclasses.replace(shape, **changes)
+def _geom_kinds(
+    model: Any, object_body: int, neighbour_bodies: set[int]
+) -> tuple[np.ndarray, list[str]]:
+    """Per geom its class (:data:`ROBOT`, ...) and its link's or shape's name."""
+    kinds = np.empty(model.ngeom, dtype=np.intp)
+    links = []
+    for g in range(model.ngeom):
+        body = int(model.geom_bodyid[g])
+        if body == 0:
+            kinds[g], name = OBSTACLE, model.geom(g).name
+        elif body == object_body:
+            kinds[g], name = OBJECT, model.geom(g).name
+        elif body in neighbour_bodies:
+            kinds[g], name = NEIGHBOUR, model.geom(g).name
+        else:
+            kinds[g] = ROBOT if model.body_weldid[body] != 0 else FIXED_ROBOT
+            name = model.body(body).name
+        links.append(name)
+    return kinds, links

@@ -63,8 +63,15 @@ def _loaded(execution: dict[str, Any], where: str = "") -> tuple[PlanScene, dict
 
 def key_frames(execution: dict[str, Any]) -> list[tuple[int, str]]:
     """``(frame, title)`` of the instants the storyboard shows: the start, the first
-    hand-object contact if it came before closing, the end of each of reach, close,
-    lift and hold."""
+    hand-object contact if it came before closing, the end of each of reach, close
+    (with the squeeze), lift and hold.
+
+    Args:
+        execution: An execution file's contents (with frames).
+
+    Returns:
+        ``(frame index, panel title)`` pairs, in time order.
+    """
     frames = execution["frames"]
     phases = frames["phase"]
     period = frames["period_s"]
@@ -74,13 +81,13 @@ def key_frames(execution: dict[str, Any]) -> list[tuple[int, str]]:
         k = min(len(phases) - 1, int(first["time_s"] / period))
         d = "?" if first.get("d") is None else f"{first['d']:.2f}"
         keys.append((k, f"touch: {first['link']}\nd = {d}"))
-    for phase, title in (
-        ("reach", "end of reach"),
-        ("close", "hand closed"),
-        ("lift", "top of lift"),
-        ("hold", "end of hold"),
+    for names, title in (
+        (("reach",), "end of reach"),
+        (("close", "squeeze"), "hand closed"),
+        (("lift",), "top of lift"),
+        (("hold",), "end of hold"),
     ):
-        indices = [i for i, p in enumerate(phases) if p == phase]
+        indices = [i for i, p in enumerate(phases) if p in names]
         if indices:
             keys.append((indices[-1], title))
     return keys
@@ -88,7 +95,16 @@ def key_frames(execution: dict[str, Any]) -> list[tuple[int, str]]:
 
 def write_rollout_storyboard(execution: dict[str, Any], out: str | Path, dpi: int = 110) -> Path:
     """Write the storyboard PNG of a rollout (module docstring) from an execution file's
-    contents (:func:`~openup_ompl.physics.record.read_execution`)."""
+    contents (:func:`~openup_ompl.physics.record.read_execution`).
+
+    Args:
+        execution: An execution file's contents (with frames).
+        out: The PNG file.
+        dpi: Resolution [dot/inch].
+
+    Returns:
+        The PNG's path.
+    """
     scene, _ = _loaded(execution)
     return _storyboard(scene, execution, out, dpi)
 
@@ -120,8 +136,13 @@ def _storyboard(scene: PlanScene, execution: dict[str, Any], out: str | Path, dp
 
     def environment(k: int, low: np.ndarray, high: np.ndarray) -> list[Any]:
         moved = dataclasses.replace(target, pose=poses[k])
+        pushed = frames.get("neighbours") or {}  # movable obstacles' poses per frame
+        shapes = [
+            dataclasses.replace(s, pose=np.asarray(pushed[s.name][k])) if s.name in pushed else s
+            for s in obstacles
+        ]
         layers = []
-        for shape in [*obstacles, moved]:
+        for shape in [*shapes, moved]:
             clipped = _clipped(shape, low, high)
             if clipped is not None:
                 color = OBJECT_COLOR if shape is moved else OBSTACLE_COLOR
@@ -182,6 +203,13 @@ def _storyboard(scene: PlanScene, execution: dict[str, Any], out: str | Path, dp
 def show_execution(execution: str | Path, out_dir: str | Path | None = None) -> ShownExecution:
     """Write ``<stem>.html`` (the rollout animated) and ``<stem>_storyboard.png`` of an
     ``execution.json`` in ``out_dir`` (default: its directory).
+
+    Args:
+        execution: The ``execution.json`` file.
+        out_dir: Where to write (default: the file's directory).
+
+    Returns:
+        The two paths written (:class:`ShownExecution`).
 
     Raises:
         ConfigError: Not an execution file, or one written without its frames.

@@ -1,0 +1,62 @@
+"""Physics verdicts of fixed plans and offsets stay as recorded (tests/physics_regression.py)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("mujoco")
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import physics_regression as regression  # noqa: E402
+
+from openup_ompl.physics import Rollout  # noqa: E402
+
+
+def _check(case: dict, trials: list[dict]) -> None:
+    """Run ``trials`` of ``case`` and compare each with its recorded summary."""
+    rollout = Rollout(regression.plan_contents(case))
+    for trial in trials:
+        expected = {k: v for k, v in trial.items() if k != "offset"}
+        record = rollout.run(trial["offset"], frames=False).to_dict(frames=False)
+        got = regression.summary(record)
+        where = f"{case['scene']} at {trial['offset']}"
+        assert got["success"] == expected["success"], where
+        assert got["cause"] == expected["cause"], where
+        for key, value in expected.items():
+            if isinstance(value, float):
+                assert got[key] == pytest.approx(value, rel=1e-6, abs=1e-6), (where, key)
+            else:
+                assert got[key] == value, (where, key)
+
+
+def test_quick_verdicts_are_the_recorded_ones():
+    """Three Panda trials (held, a can pushed away, a can dropped) give their recorded
+    verdicts and numbers."""
+    case = regression.load()[0]
+    _check(case, case["trials"][:3])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("index", range(3))
+def test_every_recorded_verdict_is_reproduced(index):
+    """Every stored plan and offset gives its recorded verdict and numbers."""
+    case = regression.load()[index]
+    _check(case, case["trials"])
+
+
+def test_a_plan_in_memory_executes_as_its_file_contents():
+    """Rollout(plan) takes the plan's problem as it is, without the file round trip, and
+    gives the same record as the plan's file contents (a held and a pushed trial)."""
+    import openup_ompl as ou
+
+    problem = ou.load_scene(regression.ROOT / "scenes" / "panda_can.toml")
+    plan = ou.GraspPlanningSetup(problem).solve(time_limit=5.0, planner="ikbirrt", seed=1)
+    in_memory, from_file = Rollout(plan), Rollout(plan.to_dict())
+    assert in_memory.source.object is problem.object
+    for offset in ((0.0, 0.0, 0.0), (0.0, 0.01, 0.0)):
+        a = in_memory.run(offset, frames=False).to_dict(frames=False)
+        b = from_file.run(offset, frames=False).to_dict(frames=False)
+        assert a == b, offset
