@@ -319,6 +319,27 @@ class DegenerateFit(PerceptionError):
         )
 
 
+class NoViewSeesObject(PerceptionError):
+    """Neither the configured camera nor any view of the ring around the object sees it
+    whole (``--camera auto``).
+
+    Attributes:
+        object_name: The scene object looked for.
+        views: Candidate views tried (the configured one included).
+        reason: Why the configured view was refused.
+    """
+
+    def __init__(self, object_name: str, views: int, reason: str) -> None:
+        self.object_name = object_name
+        self.views = views
+        self.reason = reason
+        super().__init__(
+            f"no view sees the object {object_name!r} whole: the configured camera's ({reason})"
+            f" and the {views - 1} views of the ring around it (elevations and azimuths at"
+            " its distance) are refused: expected a [camera] position that sees it"
+        )
+
+
 class SimulationDiverged(OpenUpError):
     """The physics simulation became unstable (MuJoCo reported a bad acceleration or a
     non-finite state) during a rollout: its verdict would be meaningless.

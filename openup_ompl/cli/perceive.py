@@ -22,8 +22,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         nargs="+",
         default=None,
         metavar="KEY=VALUE",
-        help="camera options over the scene's [camera] (e.g. distance=0.9 elevation=50"
-        " width=320 height=240 position=[1,0,0.8])",
+        help="'auto' (default: the scene's [camera] view if it sees the object, else the"
+        " best of a ring of views around it, printed), optionally followed by, or else,"
+        " camera options over the scene's [camera] (e.g. distance=0.9 elevation=50"
+        " width=320 height=240 position=[1,0,0.8]: that view, refused if it cannot see"
+        " the object)",
     )
     parser.add_argument(
         "--noise", type=float, default=1.0, help="sensor noise scale (1: Kinect v1, 0: none)"

@@ -9,6 +9,7 @@ distance, geom id and surface normal. The noise model is applied separately
 
 from __future__ import annotations
 
+import copy
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
@@ -370,6 +371,22 @@ class DepthCamera:
         self._geom = np.empty(n, dtype=np.int32)
         self._dist = np.empty(n, dtype=float)
         self._normal = np.empty(3 * n, dtype=float)
+
+    def looking_from(self, options: CameraOptions) -> DepthCamera:
+        """The same scene (its compiled model shared) seen through other ``options`` of
+        the same intrinsics and resolution: many candidate views without recompiling."""
+        if (options.width, options.height, options.intrinsics()) != (
+            self.options.width,
+            self.options.height,
+            self.options.intrinsics(),
+        ):
+            return DepthCamera(self.problem, options)
+        moved = copy.copy(self)
+        moved.options = options
+        moved.position, moved.target = options.look_at(self.problem)
+        moved.rotation = camera_rotation(moved.position, moved.target)
+        moved._world_rays = np.ascontiguousarray((self.rays @ moved.rotation.T).ravel())
+        return moved
 
     def render(self) -> DepthView:
         """Cast every pixel's ray (MuJoCo ``mj_multiRay``, static geoms included).

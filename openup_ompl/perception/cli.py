@@ -131,13 +131,26 @@ def perceive_command(args: argparse.Namespace) -> int:
     """
     from openup_ompl.perception.noise import NoiseOptions
     from openup_ompl.perception.perceive import perceive, write_perception
+    from openup_ompl.perception.viewpoint import choose_camera
 
     problem = load_scene(args.scene)
-    camera = scene_camera(problem, args.camera or [])
+    pairs = args.camera or ["auto"]
+    auto = pairs[0] == "auto"
+    camera = scene_camera(problem, pairs[1:] if auto else pairs)
     noise = replace(NoiseOptions(), scale=args.noise)
     options = perception_options(args)
+    depth_camera = None
+    if auto:  # the configured view, else the best of a ring around the object
+        choice = choose_camera(problem, camera)
+        print(choice.describe())
+        camera, depth_camera = choice.options, choice.camera
     perception = perceive(
-        problem, camera, noise, rng=np.random.default_rng(args.seed), options=options
+        problem,
+        camera,
+        noise,
+        rng=np.random.default_rng(args.seed),
+        options=options,
+        depth_camera=depth_camera,
     )
     paths = write_perception(problem, perception, args.out)
     assert problem.object is not None

@@ -95,11 +95,12 @@ class SuperquadricFit:
         s^2 (J_p^T J_p)^-1 + S diag(size_sigma^2) S^T``, ``S = (J_p^T J_p)^-1 J_p^T J_a``
         the pose's shift per half-size error (``J_p``, ``J_a``: the Jacobian's pose and
         size columns; the half-sizes of one of ``groups`` err together: a round section's
-        two radii are one radius). Left free instead, a size and the centre along the line of sight
+        two radii are one radius); the exponents are considered likewise, with their
+        fitted covariance. Left free instead, a size and the centre along the line of sight
         trade off (a box's face seen fixes only centre plus half-size, a can's front only
         its curvature): the points do not bound them, the free space does, and the
-        points' covariance gave them a noise-dependent variance (the jumping ``u`` of
-        issue 34). The scene names the object's dimensions: ``size_sigma`` is how well.
+        points' covariance gave them a noise-dependent variance (``u`` jumped between
+        seeds). The scene names the object's dimensions: ``size_sigma`` is how well.
         """
         if size_sigma <= 0 or self.jacobian is None or self.residuals is None:
             covariance = self.conditioned(fixed)
@@ -127,6 +128,9 @@ class SuperquadricFit:
         inverse = inverse / np.outer(scale, scale)
         shift = inverse @ jp.T @ ja
         reduced = variance * inverse + size_sigma**2 * shift @ shift.T
+        # The exponents considered too, with their fitted (marginal) covariance.
+        bend = inverse @ jp.T @ self.jacobian[:, 3:5]
+        reduced = reduced + bend @ self.covariance[3:5, 3:5] @ bend.T
         covariance = np.zeros((N_PARAMETERS, N_PARAMETERS))
         covariance[np.ix_(pose, pose)] = reduced
         return covariance

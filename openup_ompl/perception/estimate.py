@@ -117,11 +117,21 @@ def _fitted_pose(fit: SuperquadricFit, nominal: Shape) -> tuple[np.ndarray, list
         fixed = list(range(ROTATION.start, ROTATION.stop))
     else:
         fixed = []
-        rotation = _box_rotation(sq.sizes, rotation, shape.half, reference)
+        sizes = sq.sizes
+        if sq.exponents[1] > DIAMOND:
+            # A diamond section: its axes are the box's diagonals, its half-sides a1 a2 /
+            # sqrt(a1^2 + a2^2) (a square box seen across a corner fits one).
+            side = sizes[0] * sizes[1] / math.hypot(sizes[0], sizes[1])
+            sizes = np.array([side, side, sizes[2]])
+            rotation = rotation @ np.asarray(pin.exp3(np.array([0.0, 0.0, math.pi / 4])))
+        rotation = _box_rotation(sizes, rotation, shape.half, reference)
     position = sq.position - rotation @ shape.centre
     return np.asarray(pin.SE3ToXYZQUAT(pin.SE3(rotation, position)), dtype=float), fixed
 
 
+#: A superquadric cross-section exponent ``e2`` above this is a diamond: a box's section
+#: turned by 45 degrees about its z (``e2 = 2`` is exactly one).
+DIAMOND = 1.5
 #: Two half-sizes within this ratio are interchangeable when a box's (or another
 #: shape's) axes are matched to the fit's: a square section's two sides.
 SAME_SIZE = 1.15

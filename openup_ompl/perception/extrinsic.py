@@ -44,10 +44,12 @@ class PerceptionOptions:
         depth_bias_sigma: Standard deviation [m] of a depth offset common to every pixel of
             a view.
         size_sigma: How well [m] the object's half-sizes are known (the scene names
-            them): the pose's covariance holds the fitted shape and considers this error
-            of each half-size
+            them): the fit pulls each half-size to the nearest nominal one with this
+            standard deviation (:class:`~openup_ompl.perception.fit.SizePrior`), and the
+            pose's covariance holds the fitted shape and considers this error of each
+            half-size
             (:meth:`~openup_ompl.perception.covariance.SuperquadricFit.pose_covariance`);
-            0: the shape's parameters free in the covariance, as before.
+            0: the sizes free, in the fit and the covariance, as before.
         restarts: Fits of the view (the first on every point, the others on bootstrap
             resamples of the points) whose spread of ``u`` is reported; 1: one fit.
     """

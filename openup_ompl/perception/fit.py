@@ -18,6 +18,7 @@ its axis along z, and a partial view's principal axes are not ordered by the obj
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -45,6 +46,10 @@ from openup_ompl.perception.superquadric import (
 
 __all__ = ["FitOptions", "Silhouette", "fit_superquadric"]
 
+#: How far [m] a fitted surface may come before the depth its pixel measured (the
+#: sensor's noise and the pixel's footprint on a slanted surface: centimetres would
+#: still be caught).
+DEPTH_MARGIN = 0.01
 #: The least RMS spread [m] of a fitted cloud about its mean in its second direction:
 #: 0.1 mm, a hundredth of the sensor noise's size.
 MIN_SPREAD = 1e-4
@@ -125,6 +130,11 @@ class Silhouette:
     weighted as all the points together, holds the lowest sample on it: the object stands
     on its support.
 
+    A ray that measured a surface also says the space before it is free: a sample nearer
+    the camera than the depth its pixel measured (on the object or an occluder), by more
+    than :data:`DEPTH_MARGIN`, adds the difference (an occluder's pixels otherwise leave
+    the fit free to grow towards the camera, through the occluder: README, Perception).
+
     Attributes:
         distance: ``(H, W)`` pixel distance to the allowed region (0 inside it).
         position: Camera position [m], world frame.
@@ -132,6 +142,8 @@ class Silhouette:
         intrinsics: ``(fx, fy, cx, cy)`` [px].
         samples: Surface sample angles (:func:`~openup_ompl.perception.superquadric._angles`).
         support: Height [m, world z] of the surface the object stands on (None: unknown).
+        depth: ``(H, W)`` depth [m] measured at the allowed pixels (-inf elsewhere: no
+            bound); None: no depth bound.
     """
 
     distance: np.ndarray
@@ -140,6 +152,7 @@ class Silhouette:
     intrinsics: tuple[float, float, float, float]
     samples: np.ndarray
     support: float | None = None
+    depth: np.ndarray | None = None
 
     @classmethod
     def from_view(
@@ -151,13 +164,18 @@ class Silhouette:
         intrinsics: tuple[float, float, float, float],
         samples: tuple[int, int] = (10, 20),
         support: float | None = None,
+        depth: np.ndarray | None = None,
     ) -> Silhouette:
         """From ``(H, W)`` masks of the object's pixels and of pixels whose hit is in
-        front of the object (where it may hide), and the ``support``'s height."""
+        front of the object (where it may hide), the ``support``'s height and the
+        ``(H, W)`` measured ``depth`` [m] (NaN: none)."""
         from scipy.ndimage import distance_transform_edt
 
         allowed = object_mask | occluder_mask
         distance = distance_transform_edt(~allowed)
+        free = None
+        if depth is not None:
+            free = np.where(allowed & np.isfinite(depth), depth, -np.inf)
         return cls(
             np.asarray(distance, dtype=float),
             position,
@@ -165,6 +183,7 @@ class Silhouette:
             intrinsics,
             _angles(*samples),
             support,
+            free,
         )
 
     def excess(self, world: np.ndarray) -> np.ndarray:
@@ -180,6 +199,13 @@ class Silhouette:
         row = fy * camera[:, 1] / z + cy - 0.5
         pixels = map_coordinates(self.distance, [row, column], order=1, mode="nearest")
         excess = (np.maximum(pixels - 1.0, 0.0) * z / fx).reshape(shape)
+        if self.depth is not None:
+            height, width = self.depth.shape
+            r = np.clip(np.round(row).astype(int), 0, height - 1)
+            c = np.clip(np.round(column).astype(int), 0, width - 1)
+            inside = (row > -0.5) & (row < height - 0.5) & (column > -0.5) & (column < width - 0.5)
+            before = np.where(inside, self.depth[r, c] - DEPTH_MARGIN - camera[:, 2], 0.0)
+            excess = excess + np.maximum(before, 0.0).reshape(shape)
         if self.support is None:
             return excess
         return excess + np.maximum(self.support - world[..., 2], 0.0)
@@ -191,26 +217,60 @@ def _batch_residuals(
     reference: np.ndarray,
     silhouette: Silhouette | None = None,
     weights: np.ndarray | None = None,
+    prior: SizePrior | None = None,
 ) -> np.ndarray:
-    """Residuals of ``k`` parameter sets at once, ``(k, n [+ m [+ 1]])`` (the points, the
-    silhouette's samples, the resting on the support): one vectorised pass for a whole
-    finite-difference Jacobian (12 sets cost about two single evaluations)."""
+    """Residuals of ``k`` parameter sets at once, ``(k, n [+ m [+ 1]] [+ 3])`` (the
+    points, the silhouette's samples, the resting on the support, the sizes' prior): one
+    vectorised pass for a whole finite-difference Jacobian (12 sets cost about two single
+    evaluations)."""
     rotations = reference @ _rotations(xs[:, 8:11])
     local = (points[None] - xs[:, None, 5:8]) @ rotations
     sizes, e1, e2 = xs[:, None, 0:3], xs[:, 3:4], xs[:, 4:5]
     distance = _distance(local, sizes, e1, e2)
     if weights is not None:
         distance = distance * weights
-    if silhouette is None:
-        return distance
-    surface = _surface_local(sizes, e1, e2, silhouette.samples)
-    world = surface @ rotations.transpose(0, 2, 1) + xs[:, None, 5:8]
-    excess = silhouette.excess(world)
-    if silhouette.support is None:
-        return np.concatenate([distance, excess], axis=1)
-    # Standing on it: the lowest sample on the support, as strongly as the points weigh.
-    resting = (world[..., 2].min(axis=1) - silhouette.support) * math.sqrt(points.shape[0])
-    return np.concatenate([distance, excess, resting[:, None]], axis=1)
+    parts = [distance]
+    if silhouette is not None:
+        surface = _surface_local(sizes, e1, e2, silhouette.samples)
+        world = surface @ rotations.transpose(0, 2, 1) + xs[:, None, 5:8]
+        parts.append(silhouette.excess(world))
+        if silhouette.support is not None:
+            # Standing on it: the lowest sample on the support, as strongly as the points.
+            resting = (world[..., 2].min(axis=1) - silhouette.support) * math.sqrt(points.shape[0])
+            parts.append(resting[:, None])
+    if prior is not None:
+        parts.append(prior.rows(xs[:, 0:3]))
+    return np.concatenate(parts, axis=1)
+
+
+_ORDERS = tuple(itertools.permutations(range(3)))
+
+
+@dataclass(frozen=True)
+class SizePrior:
+    """What the scene says of the object's size: the fitted half-sizes are pulled to the
+    nominal ones in the order that matches them best (whichever axes the fit gave them),
+    as measurements of standard deviation ``sigma`` against points of standard deviation
+    ``noise``.
+
+    Attributes:
+        half: The nominal half-extents [m].
+        sigma: How well they are known [m].
+        noise: The points' residuals' standard deviation [m] (the rows' scale).
+    """
+
+    half: np.ndarray
+    sigma: float
+    noise: float
+
+    def rows(self, sizes: np.ndarray) -> np.ndarray:
+        """``(k, 3)`` residuals [m] of ``(k, 3)`` half-sizes: their gaps to the nominal
+        ones in the order that matches them best."""
+        half = np.asarray(self.half, dtype=float)
+        gaps = np.stack([sizes - half[list(order)] for order in _ORDERS])  # (6, k, 3)
+        best = np.argmin(np.sum(gaps**2, axis=2), axis=0)
+        gap = gaps[best, np.arange(sizes.shape[0])]
+        return np.asarray(gap * (self.noise / self.sigma))
 
 
 def _residuals(x: np.ndarray, *args: Any) -> np.ndarray:
@@ -263,6 +323,7 @@ def fit_superquadric(
     options: FitOptions | None = None,
     silhouette: Silhouette | None = None,
     noise: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
+    size_prior: tuple[np.ndarray, float] | None = None,
 ) -> SuperquadricFit:
     """Fit a superquadric to ``points`` [m] (world frame) by least squares.
 
@@ -281,6 +342,10 @@ def fit_superquadric(
         noise: ``noise(points, normals) -> sigma`` [m], the sensor noise's standard
             deviation along each unit normal (world frame), e.g.
             :func:`~openup_ompl.perception.noise.normal_sigma`; None: unweighted.
+        size_prior: The scene's half-extents [m] and how well they are known [m]: each
+            fitted half-size is pulled to the one it best matches (:class:`SizePrior`;
+            without it a fit at high noise may grow away from the camera behind its own
+            silhouette: README, Perception); None: the sizes free.
 
     Raises:
         TooFewPoints: Fewer points than twice the 11 parameters (fewer than 11 leaves the
@@ -291,25 +356,7 @@ def fit_superquadric(
     from scipy.optimize import least_squares
 
     options = options or FitOptions()
-    points = np.asarray(points, dtype=float)
-    needed = 2 * N_PARAMETERS
-    if points.ndim != 2 or points.shape[1] != 3:
-        raise ConfigError("points", f"an array of shape {points.shape}", "(N, 3) rows [x, y, z]")
-    if points.shape[0] < needed:
-        raise TooFewPoints(int(points.shape[0]), needed)
-    if not np.all(np.isfinite(points)):
-        raise ConfigError("points", "non-finite values", "finite [x, y, z] rows [m]")
-    # Points at one place or on one line leave the surface undetermined, and the fit
-    # then finds a perfect one: a zero covariance, "certain" from no information.
-    spread = np.linalg.svd(points - points.mean(axis=0), compute_uv=False) / math.sqrt(
-        points.shape[0]
-    )
-    if spread[1] < MIN_SPREAD:
-        raise ConfigError(
-            "points",
-            f"{points.shape[0]} points at one place or on a line (spread {spread[1]:.2g} m)",
-            f"points spread over a surface, more than {MIN_SPREAD:g} m in two directions",
-        )
+    points = _checked_points(points)
     low = np.array([options.min_size] * 3 + [options.min_exponent] * 2 + [-np.inf] * 6)
     high = np.array([options.max_size] * 3 + [options.max_exponent] * 2 + [np.inf] * 6)
     evaluations = 0
@@ -346,12 +393,30 @@ def fit_superquadric(
         normals = _normals(local, fitted.sizes, *fitted.exponents) @ fitted.rotation.T
         sigma = noise(points, normals)
         weights = float(np.mean(sigma)) / sigma
-    result = solve(first.x, reference, options.max_evaluations, silhouette, weights)
-    superquadric = _split(result.x, reference)
+    prior = None
+    if size_prior is not None:
+        scale = _rms(first.fun[: len(points)])  # the points' spread about the best start
+        prior = SizePrior(np.asarray(size_prior[0], dtype=float), size_prior[1], scale)
+    result = solve(first.x, reference, options.max_evaluations, silhouette, weights, prior)
+    return _result(result.x, reference, points, silhouette, weights, prior, options, evaluations)
+
+
+def _result(
+    x: np.ndarray,
+    reference: np.ndarray,
+    points: np.ndarray,
+    silhouette: Silhouette | None,
+    weights: np.ndarray | None,
+    prior: SizePrior | None,
+    options: FitOptions,
+    evaluations: int,
+) -> SuperquadricFit:
+    """The fit at its optimum ``x`` (about ``reference``), with its covariance."""
+    superquadric = _split(x, reference)
     # Re-linearise about the fitted orientation: the rotation block is then in its frame.
-    x = result.x.copy()
+    x = x.copy()
     x[8:11] = 0.0
-    args = (points, superquadric.rotation, silhouette, weights)
+    args = (points, superquadric.rotation, silhouette, weights, prior)
     residuals = _residuals(x, *args)
     jacobian = _jacobian(x, *args)
     n = points.shape[0]
@@ -372,6 +437,35 @@ def fit_superquadric(
         residuals=residuals[rows],
         kind=options.covariance,
     )
+
+
+def _checked_points(points: np.ndarray) -> np.ndarray:
+    """``points`` as an ``(N, 3)`` float array fit for the fit (see
+    :func:`fit_superquadric`'s ``Raises``)."""
+    points = np.asarray(points, dtype=float)
+    needed = 2 * N_PARAMETERS
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise ConfigError("points", f"an array of shape {points.shape}", "(N, 3) rows [x, y, z]")
+    if points.shape[0] < needed:
+        raise TooFewPoints(int(points.shape[0]), needed)
+    if not np.all(np.isfinite(points)):
+        raise ConfigError("points", "non-finite values", "finite [x, y, z] rows [m]")
+    # Points at one place or on one line leave the surface undetermined, and the fit
+    # then finds a perfect one: a zero covariance, "certain" from no information.
+    spread = np.linalg.svd(points - points.mean(axis=0), compute_uv=False) / math.sqrt(
+        points.shape[0]
+    )
+    if spread[1] < MIN_SPREAD:
+        raise ConfigError(
+            "points",
+            f"{points.shape[0]} points at one place or on a line (spread {spread[1]:.2g} m)",
+            f"points spread over a surface, more than {MIN_SPREAD:g} m in two directions",
+        )
+    return points
+
+
+def _rms(values: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.square(values)))) if values.size else 0.0
 
 
 def _free_space_rows(silhouette: Silhouette | None) -> int:

@@ -140,7 +140,7 @@ DEGENERATE_FACTOR = 1.5
 
 def perceive(
     problem: Problem,
-    camera: CameraOptions | None = None,
+    camera: CameraOptions | str | None = None,
     noise: NoiseOptions | None = None,
     fit: FitOptions | None = None,
     *,
@@ -155,8 +155,12 @@ def perceive(
     Args:
         problem: The scene; its object is where it truly is.
         camera: Camera options (ignored if ``depth_camera`` is given); ``None``: the
-            scene file's ``[camera]`` table, as ``openup-ompl perceive`` reads it
-            (:func:`~openup_ompl.perception.camera.camera_of_scene`).
+            scene file's ``[camera]`` table
+            (:func:`~openup_ompl.perception.camera.camera_of_scene`); ``"auto"``: that
+            view if it sees the object whole, else the best of a ring of views around it,
+            as ``openup-ompl perceive`` does by default
+            (:func:`~openup_ompl.perception.viewpoint.choose_camera`; ``NoViewSeesObject``
+            when none does).
         noise: Sensor noise model.
         fit: Superquadric fit options.
         rng: The noise's random generator (default: seed 0).
@@ -232,7 +236,9 @@ def _fitted(
     """One fit of ``points``: the superquadric, the object's pose, its ``(6, 6)``
     covariance (the fit's, the calibration errors', no turn about a symmetry axis) and
     ``u``."""
-    result = fit_superquadric(points, fit, shape, weights)
+    assert problem.object is not None
+    prior = (nominal_of(problem.object).half, options.size_sigma) if options.size_sigma else None
+    result = fit_superquadric(points, fit, shape, weights, prior)
     bound = (fit or FitOptions()).min_size
     if float(np.min(result.superquadric.sizes)) <= DEGENERATE_FACTOR * bound:
         raise DegenerateFit(result.superquadric.sizes.tolist(), bound)
@@ -281,10 +287,18 @@ def without_turns(covariance: np.ndarray, axes: np.ndarray) -> np.ndarray:
 
 
 def _camera(
-    problem: Problem, camera: CameraOptions | None, depth_camera: DepthCamera | None
+    problem: Problem, camera: CameraOptions | str | None, depth_camera: DepthCamera | None
 ) -> DepthCamera:
     """The camera to look with: ``depth_camera`` (built on this problem's object), else one
-    of ``camera`` (None: the scene file's)."""
+    of ``camera`` (None: the scene file's; ``"auto"``: the scene file's if it sees the
+    object whole, else the best of a ring,
+    :func:`~openup_ompl.perception.viewpoint.choose_camera`)."""
+    if depth_camera is None and camera == "auto":
+        from openup_ompl.perception.viewpoint import choose_camera
+
+        return choose_camera(problem, camera_of_scene(problem)).camera
+    if isinstance(camera, str):
+        raise ConfigError("camera", camera, "CameraOptions, None or 'auto'")
     if depth_camera is None:
         return DepthCamera(problem, camera or camera_of_scene(problem))
     if not _same_object(depth_camera.problem, problem):

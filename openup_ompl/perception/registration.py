@@ -1,7 +1,7 @@
 """A mesh object's pose from its cloud: the known convex hull registered onto the points.
 
 A superquadric cannot take a bottle's shape (a body, a shoulder, a neck): fitted to one,
-its centre sits centimetres off the bottle's (measured in ``docs/results/perception.md``).
+its centre sits centimetres off the bottle's (README, Perception).
 The scene names the mesh, so its pose is refined by least squares of each point's signed
 distance to the hull (``max_i (n_i . q - d_i)`` over the hull's face planes, ``q`` the
 point in the mesh's frame: exact inside and on the faces, a lower bound beyond an edge),

@@ -28,6 +28,12 @@ COVERAGE = 2.0
 def _hand_extent(problem: Problem, hand: np.ndarray) -> np.ndarray:
     """Extent [m] of the hand's collision geometry along the palm frame's x, y, z axes
     (the arm at its start; the hand's shape in the palm frame does not depend on it)."""
+    corners = _hand_corners(problem, hand)
+    return np.ptp(corners, axis=0) if corners.size else np.zeros(3)
+
+
+def _hand_corners(problem: Problem, hand: np.ndarray) -> np.ndarray:
+    """The corners [m] of the boxes around the hand's moving links, in the palm frame."""
     robot = problem.robot
     model = robot.model
     data = model.createData()
@@ -48,10 +54,7 @@ def _hand_extent(problem: Problem, hand: np.ndarray) -> np.ndarray:
         placement = palm.actInv(data.oMi[geometry.parentJoint] * geometry.placement)
         local = centre + signs * half
         corners.append(local @ placement.rotation.T + placement.translation)
-    if not corners:
-        return np.zeros(3)
-    points = np.concatenate(corners)
-    return np.ptp(points, axis=0)
+    return np.concatenate(corners) if corners else np.zeros((0, 3))
 
 
 def _opening(problem: Problem) -> tuple[float, np.ndarray, np.ndarray]:
@@ -104,6 +107,15 @@ def closing_direction(problem: Problem) -> np.ndarray:
     return np.asarray(pin.XYZQUATToSE3(problem.grasp_pose).rotation @ axis)
 
 
+def _finger_reach(problem: Problem) -> float:
+    """How far [m] the fingers reach from the palm frame along the approach (at ``u = 0``):
+    their tips, where a grasp's contacts lie at most."""
+    law = problem.hand_law
+    corners = _hand_corners(problem, law.with_options(u=0.0)(law.mga))
+    approach = np.asarray(problem.robot.spec.approach, dtype=float)
+    return float(np.max(corners @ approach)) if corners.size else 0.0
+
+
 def _finger_half_width(problem: Problem) -> float:
     """Half the hand's extent [m] across both its closing direction and the approach
     (a finger pad's half-width for a parallel gripper)."""
@@ -144,8 +156,9 @@ def lateral_sigma(
     The error of a point ``r`` from the object's centre (world frame) is ``dp + dtheta x r``;
     along the closing direction ``n`` it is ``g . (dp, dtheta)`` with ``g = (n, r x n)``,
     whose variance is ``g^T Sigma g`` (``Sigma`` the pose's 6 x 6 covariance). The contacts
-    are taken where the fingers meet the object: the grasp's position relative to the
-    object, clipped to the object's extents (the reach along the approach), and moved
+    are taken where the fingers meet the object: the fingertips' position at the grasp
+    (the palm's plus the fingers' reach along the approach) relative to the object,
+    clipped to the object's extents, and moved
     along the direction across both the closing direction and the approach to either
     edge of the fingers there (half the hand's extent that way, at most the object's: a
     turn about the approach moves a box's face under the finger's edges); the largest
@@ -200,10 +213,11 @@ def _contacts(problem: Problem, closing: np.ndarray, half: np.ndarray) -> list[n
     placement = pin.XYZQUATToSE3(problem.object.pose)
     centre = placement.act(nominal_of(problem.object).centre)
     grasp = pin.XYZQUATToSE3(problem.grasp_pose)
-    local = placement.rotation.T @ (grasp.translation - centre)
+    approach = grasp.rotation @ np.asarray(problem.robot.spec.approach, dtype=float)
+    tips = grasp.translation + _finger_reach(problem) * approach
+    local = placement.rotation.T @ (tips - centre)
     reach = placement.rotation @ np.clip(local, -half, half)
     reach = reach - (reach @ closing) * closing
-    approach = grasp.rotation @ np.asarray(problem.robot.spec.approach, dtype=float)
     side = np.cross(closing, approach)
     if np.linalg.norm(side) < 1e-9:
         return [reach]

@@ -14,7 +14,13 @@ from openup_ompl.perception.noise import NoiseOptions, PointCloud
 from openup_ompl.perception.superquadric import N_PARAMETERS
 from openup_ompl.scene import Problem
 
-__all__ = ["HIDDEN_SHARE", "checked_view", "occluded_outline", "silhouette_of"]
+__all__ = [
+    "HIDDEN_SHARE",
+    "bounded_outline",
+    "checked_view",
+    "occluded_outline",
+    "silhouette_of",
+]
 
 
 def silhouette_of(
@@ -22,7 +28,8 @@ def silhouette_of(
 ) -> Silhouette:
     """The view's free space: the object's pixels, pixels without a measurement (dropped
     or no hit: unknown) and pixels whose hit lies in front of the object are allowed;
-    nothing below the ``support``'s height [m] (:meth:`DepthCamera.support_under`)."""
+    nothing below the ``support``'s height [m] (:meth:`DepthCamera.support_under`), nor
+    before the depth a pixel measured."""
     valid = _valid(view, noise)
     shape = (view.height, view.width)
     return Silhouette.from_view(
@@ -32,6 +39,7 @@ def silhouette_of(
         view.rotation,
         camera.intrinsics(),
         support=support,
+        depth=np.where(valid, view.depth, np.nan).reshape(shape),
     )
 
 
@@ -75,6 +83,28 @@ def occluded_outline(view: DepthView, noise: NoiseOptions) -> dict[str, tuple[in
         outline = on_object & ~inside
         counts[side] = (int(np.count_nonzero(outline & hidden)), int(np.count_nonzero(outline)))
     return counts
+
+
+def bounded_outline(view: DepthView, noise: NoiseOptions) -> int:
+    """The object's outline pixels whose next pixel beyond (on any image side) measured a
+    surface behind the object's nearest point: where the view bounds the object (an
+    occluder's pixel hides it, a pixel without a measurement, such as a table seen at
+    grazing incidence, says nothing)."""
+    shape = (view.height, view.width)
+    on_object = view.on_object.reshape(shape)
+    valid = _valid(view, noise)
+    front = np.nanmin(view.depth[view.on_object & valid]) if (view.on_object & valid).any() else 0
+    behind = (valid & ~view.on_object & (view.depth >= front)).reshape(shape)
+    bounded = np.zeros(shape, dtype=bool)
+    for dr, dc in _SIDES.values():
+        rows = slice(max(-dr, 0), shape[0] - max(dr, 0))
+        cols = slice(max(-dc, 0), shape[1] - max(dc, 0))
+        beyond_rows = slice(max(dr, 0), shape[0] + min(dr, 0))
+        beyond_cols = slice(max(dc, 0), shape[1] + min(dc, 0))
+        step = np.zeros(shape, dtype=bool)
+        step[rows, cols] = behind[beyond_rows, beyond_cols]
+        bounded |= step
+    return int(np.count_nonzero(on_object & bounded))
 
 
 #: An image side is hidden when more than this share of the object's outline on it lies

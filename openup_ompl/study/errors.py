@@ -144,15 +144,17 @@ def _perceived(truth: Problem, source: ErrorSource, rng: np.random.Generator) ->
         seen = perceive(truth, noise=NoiseOptions(scale=source.noise), rng=rng)
     except PerceptionError as error:
         return Belief(None, None, refusal=f"{type(error).__name__}: {error}")
-
     believed = at_estimate(truth, seen.pose)
     fit = seen.fit
+    # The perception's pose covariance: the fit's (a mesh's registration's) with the
+    # camera's calibration errors, none about a symmetry axis; in the scene shape's frame,
+    # so the scene's extents go with it (sizes None), not the superquadric's.
     evidence = Evidence(
-        fit.position_covariance,
-        fit.rotation_covariance,
+        seen.position_covariance,
+        seen.rotation_covariance,
         fit.diameter,
         fit.mean_residual,
-        sizes=fit.superquadric.sizes,
+        sizes=None,
         perceived=True,
     )
     assert believed.object is not None and truth.object is not None
