@@ -60,3 +60,12 @@ def test_a_plan_in_memory_executes_as_its_file_contents():
         a = in_memory.run(offset, frames=False).to_dict(frames=False)
         b = from_file.run(offset, frames=False).to_dict(frames=False)
         assert a == b, offset
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("index", range(6))
+def test_the_throughput_set_keeps_its_verdicts(index):
+    """The 126 trials of tests/data/physics_trials.json (six plans at the sweep's 21
+    perturbations, two with a movable cup) give their recorded verdicts and numbers."""
+    case = regression.load(regression.TRIALS)[index]
+    _check(case, case["trials"])
