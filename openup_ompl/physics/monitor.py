@@ -169,24 +169,29 @@ class Monitor:
         class comes from one table lookup; only contacts that can still add a first touch
         are looked at one by one (in MuJoCo's order, as every one was before)."""
         contact = self.sim.contact
-        geom = contact.geom[:ncon]
+        geom = contact.geom
         ids = geom[:, 0] * self._ngeom + geom[:, 1]
         classes = self._classes[ids]
-        if not classes.any():
+        count = np.bincount(classes, minlength=5)
+        if count[0] == ncon:
             return
-        depth = -contact.dist[:ncon]
-        pressed = classes == PRESSED
-        if pressed.any():
-            deepest = float(depth[pressed].max())
+        if count[PRESSED]:
+            # The deepest penetration: -min(dist) is max(-dist) to the last bit.
+            deepest = -float(contact.dist[classes == PRESSED].min())
             if deepest > self.pressed:
                 self.pressed, self.pressed_phase = deepest, self.phase
-        gripped = classes == GRIPPED
-        if gripped.any():
-            self.gripped = max(self.gripped, float(depth[gripped].max()))
-        relevant = (classes >= HIT) & ~self._seen[ids]
-        if self.first is None or (not self.touched and self.phase in ("settle", "reach")):
-            relevant |= gripped
-        if not relevant.any():
+        pending = self.first is None or (not self.touched and self.phase in ("settle", "reach"))
+        gripped = None
+        if count[GRIPPED]:
+            gripped = classes == GRIPPED
+            self.gripped = max(self.gripped, -float(contact.dist[gripped].min()))
+        if count[HIT] + count[NUDGED]:
+            relevant = (classes >= HIT) & ~self._seen[ids]
+            if pending and gripped is not None:
+                relevant |= gripped
+        elif pending and gripped is not None:
+            relevant = gripped
+        else:
             return
         kinds, links = self.world.geom_kind, self.world.geom_link
         for i in np.flatnonzero(relevant):
