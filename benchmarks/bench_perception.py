@@ -29,9 +29,9 @@ import _common  # noqa: E402
 
 import openup_ompl  # noqa: E402
 from openup_ompl.perception import CameraOptions, DepthCamera, NoiseOptions  # noqa: E402
+from openup_ompl.perception.fit import fit_superquadric  # noqa: E402
 from openup_ompl.perception.noise import noisy_cloud, normal_sigma  # noqa: E402
 from openup_ompl.perception.perceive import silhouette_of  # noqa: E402
-from openup_ompl.perception.superquadric import fit_superquadric  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 

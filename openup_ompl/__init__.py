@@ -52,7 +52,7 @@ from openup_ompl.validity import (
 __version__ = "0.1.0"
 
 #: Names imported on first use (PEP 562): the experiment pulls in the executor and the
-#: figures, which planning alone does not need (40 ms of ``openup-ompl plan``'s start).
+#: figures, which planning alone does not need and which would slow every command's start.
 _LAZY = {
     "RobustnessOptions": "openup_ompl.robustness",
     "RobustnessResult": "openup_ompl.robustness",

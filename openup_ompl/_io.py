@@ -34,6 +34,21 @@ def check_dir(path: Path, what: str = "directory") -> Path:
     return path
 
 
+def resolved(path: str | Path, what: str) -> Path:
+    """``path`` made absolute, its symbolic links resolved (``~`` expanded).
+
+    Raises:
+        ConfigError: Its symbolic links form a loop (naming the path), which
+            :meth:`pathlib.Path.resolve` reports as a bare ``RuntimeError`` or ``OSError``.
+    """
+    try:
+        return Path(path).expanduser().resolve()
+    except (RuntimeError, OSError) as error:
+        raise ConfigError(
+            what, str(path), f"a path that resolves, not a loop of symbolic links ({error})"
+        ) from None
+
+
 def make_dir(path: Path) -> Path:
     """Create the directory ``path`` and its parents if missing; returns ``path``.
 
@@ -70,11 +85,8 @@ def write_atomic(path: str | Path, text: str) -> Path:
     return path
 
 
-#: The largest file the package reads [bytes]: 256 MiB. The largest written by the
-#: package measured 50 MB (an ``execution.json`` with the frames of a 214,200-row plan,
-#: whose plan file was 40 MB; a default plan of the shipped scenes is under 1 MB). A
-#: file beyond it, or a device such as ``/dev/zero``, was read whole into memory (23 GB
-#: before the process was killed).
+#: The largest file the package reads [bytes]: 256 MiB, several times the largest file it
+#: writes; without a bound a device such as ``/dev/zero`` was read whole into memory.
 MAX_FILE_BYTES = 256 * 2**20
 
 _KINDS = (
@@ -162,3 +174,17 @@ def json_safe(value: Any, digits: int | None = None) -> Any:
     if isinstance(value, (list, tuple)):
         return [json_safe(item, digits) for item in value]
     return value
+
+
+def json_with_rows(data: dict[str, Any], keys: tuple[str, ...]) -> str:
+    """``data`` as indented JSON text, the lists of number rows at ``keys`` written one row
+    a line (by the C encoder: the indented encoder is pure Python, slow on a plan's
+    thousands of rows)."""
+    rows = {key: data[key] for key in keys}
+    marks = {key: f"@@{key}@@" for key in rows}
+    text = json.dumps({**data, **marks}, indent=1, allow_nan=False)
+    for key, value in rows.items():
+        # Rows of numbers only: "], [" occurs between rows and nowhere else.
+        lines = json.dumps(value, allow_nan=False)[1:-1].replace("], [", "],\n  [")
+        text = text.replace(json.dumps(marks[key]), f"[\n  {lines}\n ]", 1)
+    return text

@@ -49,3 +49,8 @@ def selector(indices: np.ndarray) -> slice | np.ndarray:
     if indices.size and np.all(np.diff(indices) == 1):
         return slice(int(indices[0]), int(indices[-1]) + 1)
     return indices
+
+
+def q_indices(model: pin.Model, joints: Sequence[str]) -> np.ndarray:
+    """Indices in ``q`` of the named one-value joints, in their order."""
+    return np.array([model.joints[model.getJointId(n)].idx_q for n in joints], dtype=np.intp)

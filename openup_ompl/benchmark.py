@@ -41,12 +41,8 @@ from openup_ompl._io import json_safe
 from openup_ompl._resources import data_dir
 from openup_ompl.exceptions import ConfigError, InvalidProblem, MissingExtra, OpenUpError
 from openup_ompl.executor import Task, check_seeds, load_records, run_tasks, settings_digest
-from openup_ompl.planning import (
-    GraspPlanningSetup,
-    PlanningOptions,
-    check_planner,
-    check_time_limit,
-)
+from openup_ompl.planning import GraspPlanningSetup
+from openup_ompl.planning_options import PlanningOptions, check_planner, check_time_limit
 from openup_ompl.scene import load_scene
 from openup_ompl.viz._mpl import _pyplot, _save
 

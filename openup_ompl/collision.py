@@ -24,9 +24,9 @@ from openup_ompl.motion_bound import self_pair_factors
 from openup_ompl.scene import Problem, Shape
 
 # Coal's naive manager (AABB test on every pair, then the narrow phase) measured fastest
-# for single configurations of robots with a few dozen geometries: 6.5 us against 14 us for
-# the dynamic AABB tree and 39 us for Pinocchio's pair loop on the Panda scene. Batches go
-# through the dynamic AABB tree pool, the only pool Pinocchio binds.
+# for single configurations of robots with a few dozen geometries
+# (``benchmarks/bench_validity.py``). Batches go through the dynamic AABB tree pool, the
+# only pool Pinocchio binds.
 _Manager: Any = pin.BroadPhaseManager_NaiveCollisionManager
 _ManagerPool: Any = pin.BroadPhaseManagerPool_DynamicAABBTreeCollisionManager
 #: Smallest batch sent to the thread pool (see :meth:`CollisionWorld.batch_in_collision`).
@@ -37,13 +37,12 @@ def _without_warm_start(
     geometry_data: pin.GeometryData, distances: bool = True
 ) -> pin.GeometryData:
     """Turn off GJK's cached initial guess in every collision request, and in every
-    distance request unless ``distances`` is false (data that never computes distances:
-    the loop costs about 1 us a request, 0.8 ms for the UR5 + Allegro's distance
-    requests alone).
+    distance request unless ``distances`` is false (data that never computes distances
+    need not pay for the loop over its requests).
 
     With it on (Pinocchio's default), a query's answer can depend on the queries before
-    it: our benchmark saw a 1.3 mm penetration reported free, and the same distance
-    query asked twice differed by 0.6 um. The cost is about 4 %.
+    it (a penetration reported free, a distance that changes when asked twice); turning it
+    off costs a few per cent.
     """
     requests = list(geometry_data.collisionRequests)
     if distances:
@@ -198,8 +197,8 @@ class CollisionWorld:
         flags are then only meaningful as "some configuration collides". Batches of at
         least :data:`PARALLEL_MIN_STATES` go to Pinocchio's thread pool; smaller ones, and
         every batch of a one-thread world, are checked one by one in this thread: waking
-        the pool's sleeping threads costs about 100 us per call, the price of 15-20
-        single checks (``benchmarks/bench_speed.py``).
+        the pool's sleeping threads costs more than a small batch's single checks
+        (``benchmarks/bench_speed.py``).
         """
         n = qs.shape[1]
         if self.num_threads == 1 or n < PARALLEL_MIN_STATES:

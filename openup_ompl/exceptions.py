@@ -114,8 +114,7 @@ class UnreachableGrasp(InvalidProblem):
             )
             message = f"grasp pose {self.pose} is {why} after {attempts} IK restarts"
         else:
-            # Random restarts can miss a pose reachable only in a sliver of joint space
-            # (a Panda pose behind its base, its elbow near a limit: 2 of 40,000 converged).
+            # Random restarts can miss a pose reachable only in a sliver of joint space.
             message = (
                 f"grasp pose {self.pose} is out of reach (no IK solution) after {attempts} IK"
                 " restarts, or reachable only in a sliver of joint space they did not find"
@@ -244,9 +243,8 @@ class _UnboundedView(PerceptionError):
 
 
 class ObjectCutOff(_UnboundedView):
-    """The object runs off the image: the view does not bound it, and the fit grew it
-    past the border (an audit: 49 mm too high with a 0.9 mm sigma; a camera 0.12 m away,
-    a half-length at the fit's 1 m bound).
+    """The object runs off the image: the view does not bound it, and the fit grows it
+    past the border, far off with a small sigma.
 
     Attributes:
         pixels: The object's pixels on the image border.
@@ -263,9 +261,8 @@ class ObjectCutOff(_UnboundedView):
 
 class ObjectOccluded(_UnboundedView):
     """The object's outline is hidden behind a nearer surface on a side nothing else
-    bounds: its extent there is unknown, and the fit ends it where the view does (an
-    audit: the Panda's can seen over its scene's wall from 50 degrees, the fit a disc of
-    its visible top 45 mm too high, with a 0.7 mm sigma). The bottom is bounded when the
+    bounds: its extent there is unknown, and the fit ends it where the view does, far off
+    with a small sigma. The bottom is bounded when the
     object stands on a surface the rays find (:meth:`~openup_ompl.perception.camera.
     DepthCamera.support_under`).
 
@@ -340,3 +337,19 @@ class SimulationDiverged(OpenUpError):
             f"the physics simulation diverged during the {phase} at {time:.3f} s ({detail});"
             " try a smaller PhysicsOptions.timestep"
         )
+
+
+class PlanRejected(ConfigError):
+    """A plan fails its re-validation against its scene before use
+    (:func:`~openup_ompl.revalidate.revalidate_plan`): a stale or edited plan is never run.
+
+    Attributes:
+        row: Index of the first bad state in the plan's path.
+        reason: What is wrong with it.
+    """
+
+    def __init__(self, where: str, row: int, reason: str, expected: str) -> None:
+        self.row = int(row)
+        self.reason = reason
+        self.where, self.value, self.expected = f"{where}path[{self.row}]", reason, expected
+        OpenUpError.__init__(self, f"{self.where}: {reason}; expected {expected}")

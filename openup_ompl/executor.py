@@ -37,7 +37,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from openup_ompl._io import make_dir, write_atomic
+from openup_ompl._io import check_dir, make_dir, write_atomic
 from openup_ompl._toml import is_integer
 from openup_ompl.exceptions import ConfigError, MissingExtra, SweepFailed
 
@@ -86,6 +86,8 @@ def check_seeds(first: int, count: int, most: int, where: str) -> None:
 
 #: The example an error about a scheduler address gives.
 SCHEDULER_EXAMPLE = "a Dask scheduler address such as tcp://host:8786"
+#: How long [s] a sweep waits for its Dask scheduler to answer (Dask's ``Client(timeout=)``).
+CONNECT_TIMEOUT = 30.0
 
 
 def check_scheduler(address: str, where: str = "scheduler") -> str:
@@ -278,15 +280,18 @@ def run_tasks(
     if not (is_integer(retries) and retries >= 0):
         raise ConfigError("retries", retries, "0 or more")
     shards = Path(shards)
-    make_dir(shards)
+    check_dir(shards)
     todo = [t for t in tasks if not shard_path(shards, t.key).exists()]
     if not todo:
         return []
     progress = _Progress(len(todo), quiet)
+    # The shards directory is made once the tasks can run: a scheduler that cannot be
+    # reached leaves none behind.
     if scheduler is not None:
         failures = _run_dask(todo, shards, scheduler, retries, timeout, progress)
     else:
         count = workers or len(os.sched_getaffinity(0))
+        make_dir(shards)
         failures = _run_local(todo, shards, count, retries, timeout, progress)
     if failures:
         raise SweepFailed(failures)
@@ -341,10 +346,11 @@ def _run_dask(
         raise MissingExtra("dask[distributed]", "distributed") from error
     failures: dict[str, str] = {}
     try:
-        client = Client(scheduler, timeout="30s")
+        client = Client(scheduler, timeout=f"{CONNECT_TIMEOUT:g}s")
     except (ValueError, TypeError) as error:  # an address Dask's connection code refuses
         raise ConfigError("scheduler", scheduler, f"{SCHEDULER_EXAMPLE} ({error})") from None
     with client:
+        make_dir(shards)
         futures = {
             client.submit(
                 run_task_process,

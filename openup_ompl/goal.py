@@ -279,22 +279,38 @@ class IKGoalRegion(ob.GoalSampleableRegion):
         nxt = self.goal.ik.palm_step(arm, -self.pregrasp_step * checker.robot.spec.approach)
         return nxt is not None and checker.finest_world.touches_environment(checker.coupled_q(nxt))
 
-    def _retreat_to(self, arm: np.ndarray | Sequence[float]) -> list[np.ndarray] | None:
+    def _arm_values(self, arm: ob.State | np.ndarray | Sequence[float]) -> np.ndarray:
+        """The arm joint values of an OMPL state over the arm joints, or of a sequence."""
+        if isinstance(arm, ob.State):
+            return np.array(arm[0 : self._n], dtype=float)
+        return np.asarray(arm, dtype=float)
+
+    def _retreat_to(self, arm: ob.State | np.ndarray | Sequence[float]) -> list[np.ndarray] | None:
         """The retreat that ends at ``arm`` (bit for bit) if it is a sampled pregrasp."""
-        key = np.asarray(arm, dtype=float).tobytes()
+        key = self._arm_values(arm).tobytes()
         chain = self._retreats.get(key)
         return (
             chain if chain is not None and len(chain) > 1 and chain[-1].tobytes() == key else None
         )
 
-    def is_pregrasp(self, arm: np.ndarray | Sequence[float]) -> bool:
-        """Whether ``arm`` (bit for bit) is a pregrasp state this region sampled."""
+    def is_pregrasp(self, arm: ob.State | np.ndarray | Sequence[float]) -> bool:
+        """Whether ``arm`` (an OMPL state or the arm joint values [rad or m], bit for bit)
+        is a pregrasp state this region sampled."""
         return self._retreat_to(arm) is not None
 
-    def approach(self, arm: np.ndarray | Sequence[float]) -> np.ndarray:
-        """The certified straight approach from a sampled pregrasp state ``arm`` to its
-        grasp configuration: ``(k, dof)``, ``arm`` itself left out, the grasp last; empty
-        (``(0, dof)``) when ``arm`` is not a pregrasp state of this region."""
+    def approach(self, arm: ob.State | np.ndarray | Sequence[float]) -> np.ndarray:
+        """The certified straight approach from a sampled pregrasp state to its grasp
+        configuration.
+
+        Args:
+            arm: The pregrasp state: an OMPL state of :attr:`goal`'s arm space (e.g. a
+                path's last state) or its arm joint values [rad or m], bit for bit as
+                sampled.
+
+        Returns:
+            ``(k, dof)`` arm configurations, ``arm`` itself left out, the grasp last;
+            empty (``(0, dof)``) when ``arm`` is not a pregrasp state of this region.
+        """
         chain = self._retreat_to(arm)
         return np.empty((0, self._n)) if chain is None else np.array(chain[-2::-1])
 
@@ -307,7 +323,7 @@ class IKGoalRegion(ob.GoalSampleableRegion):
         """A ``time.perf_counter()`` value past which no more goals are offered than the
         run has drawn since it was set (at least one: BITstar cannot start without a
         goal). BITstar and FMT draw ``maxSampleCount()`` goals up front without looking
-        at the time, an IK solve each (10,000 took 73 s of a 5 s limit).
+        at the time, an IK solve each, far past a planning time limit.
         :meth:`GraspPlanningSetup.solve <openup_ompl.planning.GraspPlanningSetup.solve>`
         sets it to its time limit and clears it after."""
         return self._deadline

@@ -59,8 +59,7 @@ def palm_distance(
 REFERENCE_TOLERANCE = 1e-6
 #: The smallest ``mga`` accepted. Below it the hand would snap open within 1 % of the reach:
 #: the fingers' speed bound grows as ``1 / mga``, and with it the states a motion check
-#: places near the grasp (an LWA3 plan of ``scenes/lwa3_sdh_can.toml`` took 2.3 s at
-#: ``mga = 0.01``, 8 s at 0.001 and 48 s at 0.0001, overrunning a 3 s limit in one check).
+#: places near the grasp, until one check outlasts a planning time limit.
 MGA_MIN = 0.01
 
 

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from openup_ompl import _toml
+from openup_ompl._io import resolved
 from openup_ompl._resources import data_dir, resolve_path
 from openup_ompl.exceptions import ConfigError, RobotNotFound
 from openup_ompl.hand_law import MGA_MIN
@@ -279,7 +280,7 @@ class RobotSpec:
     @classmethod
     def from_file(cls, path: Path) -> RobotSpec:
         """Read and validate a robot TOML file (README, Files: Robot)."""
-        path = Path(path).resolve()
+        path = resolved(path, "robot file")
         raw = _toml.read_toml(path, "robot file")
         where = path.name
         arm = _toml.string_list(_toml.require(raw, "arm_joints", where), f"{where}: arm_joints")
@@ -301,9 +302,12 @@ class RobotSpec:
         convex = raw.get("convex", True)
         if not isinstance(convex, bool):
             raise ConfigError(f"{where}: convex", convex, "true or false")
+        description = raw.get("description", "")
+        if not isinstance(description, str):
+            raise ConfigError(f"{where}: description", description, "a string")
         return cls(
             name=_toml.string(_toml.require(raw, "name", where), f"{where}: name"),
-            description=str(raw.get("description", "")),
+            description=description,
             path=path,
             urdf=resolve_path(
                 _toml.string(_toml.require(raw, "urdf", where), f"{where}: urdf"),

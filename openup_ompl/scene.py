@@ -15,6 +15,7 @@ import numpy as np
 import pinocchio as pin
 
 from openup_ompl import _toml
+from openup_ompl._io import resolved
 from openup_ompl._resources import data_dir
 from openup_ompl.exceptions import ConfigError
 from openup_ompl.hand_law import TABLE_FIELDS, HandLaw
@@ -205,7 +206,7 @@ class Shape:
                     f"{where}.{key}", _toml.shown(value), f"None: a {self.shape} has {keys}"
                 )
         if self.shape == "mesh":
-            checked["file"] = checked["file"].resolve()
+            checked["file"] = resolved(checked["file"], f"{where}.file")
             hull_points(checked["file"], checked["scale"], where)
         if not isinstance(self.movable, bool):
             raise ConfigError(f"{where}.movable", self.movable, "True or False")
@@ -429,7 +430,7 @@ def load_scene(path: str | Path, robot: Robot | None = None) -> Problem:
     """
     if not isinstance(path, (str, os.PathLike)):
         raise ConfigError("scene file", path, "a path to a scene TOML")
-    path = Path(path).expanduser().resolve()
+    path = resolved(path, "scene file")
     raw = _toml.read_toml(path, "scene file")
     where = path.name
     _toml.check_keys(raw, SCENE_KEYS, f"{where}: ")

@@ -341,7 +341,7 @@ def _native_stderr() -> Iterator[list[str]]:
 
 
 def _convex_hulls(model: pin.Model, geometry_model: pin.GeometryModel, where: str) -> None:
-    """Replace every mesh by its convex hull (qhull): conservative, about 2x faster.
+    """Replace every mesh by its convex hull (qhull): conservative, and faster to check.
 
     Raises:
         ConfigError: A mesh with no solid hull (:func:`_check_hull_points`), named with

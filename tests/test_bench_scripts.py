@@ -117,3 +117,16 @@ def test_perception_accuracy_prints_a_row_per_object() -> None:
     assert done.returncode == 0, done.stderr
     rows = [line for line in done.stdout.splitlines() if line.startswith(("| box", "| can"))]
     assert len(rows) == 2 and all("| 3 (" in row for row in rows)
+
+
+@pytest.mark.slow  # plans and executes a plan of each shipped robot
+def test_bench_revalidate_prints_a_row_per_robot(tmp_path: Path) -> None:
+    """The re-validation cost beside the execution's: one row per shipped robot's can
+    scene, every plan re-validated (its rows counted) and executed, the JSON written."""
+    out = tmp_path / "revalidate.json"
+    done = _run("bench_revalidate.py", "--seeds", "1", "--json", str(out))
+    assert done.returncode == 0, done.stderr
+    rows = [line for line in done.stdout.splitlines() if line.startswith("| ") and "_can" in line]
+    assert len(rows) == len(oo.available_robots())
+    scenes = json.loads(out.read_text())["scenes"]
+    assert all(s["states"][0] > 1 and len(s["execute_s"]) == 1 for s in scenes.values())

@@ -180,7 +180,7 @@ def test_help_shows_no_markup_and_the_defaults(tmp_path):
 def test_summary_line_counts_restarts() -> None:
     """The command's one-line summary names the restarts of a restarted rrtconnect run
     (none said when there were none, and none for a planner that is not restarted)."""
-    from openup_ompl.__main__ import _summary
+    from openup_ompl.cli._common import summary as _summary
 
     setup = ou.GraspPlanningSetup(ou.load_scene(ou.default_scene_path()))
     plan = setup.solve(planner="rrtconnect", seed=1)

@@ -25,7 +25,7 @@ from openup_ompl.executor import run_tasks
 from openup_ompl.goal import GOAL_THRESHOLD
 from openup_ompl.grasp import ClosingOptions
 from openup_ompl.perception.closed_loop import ClosedLoopOptions
-from openup_ompl.perception.superquadric import FitOptions
+from openup_ompl.perception.fit import FitOptions
 from openup_ompl.physics import PhysicsOptions
 from openup_ompl.physics.rollout import check_offset
 from openup_ompl.validity import CoupledChecker
@@ -761,6 +761,25 @@ def test_pregrasp_goal_samples_back_off_along_a_certified_approach(
     plain.sampleGoal(state)
     assert plain.distanceGoal(state) <= GOAL_THRESHOLD
     assert plain.approach(np.array(state[0:dof])).shape == (0, dof)
+
+
+def test_approach_and_is_pregrasp_take_an_ompl_state_as_its_values(
+    default_problem: oo.Problem,
+) -> None:
+    """``approach`` and ``is_pregrasp`` of an OMPL state (a path's last state) answer what
+    they answer for its arm values: the same approach for a pregrasp, none for another."""
+    setup = oo.GraspPlanningSetup(default_problem, pregrasp=0.1)
+    region = setup.goal_region
+    dof = default_problem.robot.arm_idx.size
+    state = setup.space_information.allocState()
+    region.sampleGoal(state)
+    arm = np.array(state[0:dof])
+    assert region.is_pregrasp(state) and region.is_pregrasp(arm)
+    np.testing.assert_array_equal(region.approach(state), region.approach(arm))
+    assert region.approach(state).shape[0] >= 1
+    state[0] = state[0] + 1e-3
+    assert not region.is_pregrasp(state)
+    assert region.approach(state).shape == (0, dof)
 
 
 def test_ompl_planners_reach_the_grasp_through_the_pregrasp(tmp_path: Path) -> None:

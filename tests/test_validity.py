@@ -12,7 +12,7 @@ from ompl import util as ompl_util
 from recheck import recheck_plan
 
 import openup_ompl as oo
-from openup_ompl import validity
+from openup_ompl import state_check, validity
 from openup_ompl._resources import data_dir
 from openup_ompl.benchmark import default_problems_dir
 from openup_ompl.collision import CollisionWorld
@@ -284,7 +284,7 @@ def test_batched_hands_are_the_laws(robot_setup: oo.GraspPlanningSetup) -> None:
         ends = (checker.normalized_distance(a), checker.normalized_distance(b))
         t = np.arange(checker.segment_count(a, b) + 1) / checker.segment_count(a, b)
         arms = a + t[:, None] * (b - a)
-        qs, _ = checker._states(a, b - a, t, ends)
+        qs, _ = checker._states(a, b - a, t, ends, float(checker.distance_rates @ np.abs(b - a)))
         path = np.concatenate([arms, [a], arms[::3]])
         for batch, states in ((qs, arms), (checker.coupled_qs(path), path)):
             expected = np.array([checker.coupled_q(x) for x in states]).T
@@ -367,7 +367,7 @@ def test_free_states_are_remembered_colliding_ones_are_not(
     """A state found free is not checked again (an equal array, by ``is_valid`` or as a
     motion's end) and keeps its ``d``; a colliding state, or one given as a list, is
     checked every time; the memory stays within its bound and ``forget`` empties it."""
-    monkeypatch.setattr(validity, "KNOWN_VALID_MAX", 5)
+    monkeypatch.setattr(state_check, "KNOWN_VALID_MAX", 5)
     checker = CoupledChecker(setup.problem, setup.law)
     robot = setup.problem.robot
     rng = np.random.default_rng(4)

@@ -4,6 +4,8 @@ covariance of its pose, and the rule that turns that covariance into the hand la
 """
 
 from openup_ompl.perception.camera import CameraOptions, DepthCamera, DepthView
+from openup_ompl.perception.covariance import SuperquadricFit
+from openup_ompl.perception.fit import FitOptions, Silhouette, fit_superquadric
 from openup_ompl.perception.noise import NoiseOptions, PointCloud, kinect_sigmas, noisy_cloud
 from openup_ompl.perception.perceive import (
     Perception,
@@ -13,13 +15,7 @@ from openup_ompl.perception.perceive import (
     perceived_toml,
     write_perception,
 )
-from openup_ompl.perception.superquadric import (
-    FitOptions,
-    Silhouette,
-    Superquadric,
-    SuperquadricFit,
-    fit_superquadric,
-)
+from openup_ompl.perception.superquadric import Superquadric
 from openup_ompl.perception.uncertainty import (
     COVERAGE,
     clearance_per_u,

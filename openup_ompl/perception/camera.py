@@ -31,15 +31,13 @@ ORBIT_KEYS = ("distance", "elevation", "azimuth")
 #: (:meth:`DepthCamera.support_under`) when it lies at most this far [m] above their
 #: lowest one (the sensor's noise reaches millimetres) ...
 SUPPORT_TOLERANCE = 0.01
-#: ... and at most this far [m] below it: the Panda scene's wall hides its can's lowest
-#: 22-25 mm; an object held higher above a surface is not standing on it.
+#: ... and at most this far [m] below it: a wall may hide an object's lowest centimetres;
+#: an object held higher above a surface is not standing on it.
 SUPPORT_GAP = 0.05
 #: A pixel just below the object's lowest one in an image column that sees a surface this
 #: much [m] deeper than that object pixel sees under the object: a gap, where a standing
-#: object's base meets the table (the table in front of it is nearer, not deeper).
-#: Measured from the LWA3 scene's 40 deg (median over the columns): the shipped can
-#: -2 mm, the can held 1.5 cm up 19 mm and 3 cm up 40 mm, a 40 mm ball resting on the
-#: table 33 mm (the space under its belly: it is fitted without the support).
+#: object's base meets the table (the table in front of it is nearer, not deeper): set
+#: between the depths a can held 1.5 cm up and one held 3 cm up give.
 GAP_DEPTH = 0.025
 
 

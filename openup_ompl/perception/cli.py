@@ -16,7 +16,67 @@ from openup_ompl.exceptions import ConfigError, MissingExtra
 from openup_ompl.perception.camera import CameraOptions, camera_of_scene
 from openup_ompl.scene import Problem, load_scene
 
-__all__ = ["camera_pairs", "closed_loop_command", "perceive_command", "scene_camera"]
+__all__ = [
+    "add_error_arguments",
+    "camera_pairs",
+    "closed_loop_command",
+    "perceive_command",
+    "perception_options",
+    "scene_camera",
+]
+
+
+def add_error_arguments(parser: argparse.ArgumentParser) -> None:
+    """The camera's calibration errors and the estimator's restarts as options of a
+    command (:class:`~openup_ompl.perception.extrinsic.PerceptionOptions`; its defaults)."""
+    from openup_ompl.perception.extrinsic import PerceptionOptions
+
+    default = PerceptionOptions()
+    parser.add_argument(
+        "--camera-position-sigma",
+        type=float,
+        default=default.camera_position_sigma,
+        metavar="M",
+        help="standard deviation [m] of the camera's believed position per axis"
+        f" (default {default.camera_position_sigma:g}; 0: known exactly)",
+    )
+    parser.add_argument(
+        "--camera-angle-sigma",
+        type=float,
+        default=default.camera_angle_sigma,
+        metavar="DEG",
+        help="standard deviation [deg] of the camera's believed orientation per axis"
+        f" (default {default.camera_angle_sigma:g})",
+    )
+    parser.add_argument(
+        "--depth-bias-sigma",
+        type=float,
+        default=default.depth_bias_sigma,
+        metavar="M",
+        help="standard deviation [m] of a depth offset common to a view's pixels"
+        f" (default {default.depth_bias_sigma:g})",
+    )
+    parser.add_argument(
+        "--restarts",
+        type=int,
+        default=default.restarts,
+        metavar="N",
+        help="fits per view: the points, then N-1 bootstrap resamples; u is their median"
+        f" and their spread is reported (default {default.restarts})",
+    )
+
+
+def perception_options(args: argparse.Namespace) -> Any:
+    """The :class:`~openup_ompl.perception.extrinsic.PerceptionOptions` of parsed
+    :func:`add_error_arguments` options (a bad value: ``ConfigError`` naming it)."""
+    from openup_ompl.perception.extrinsic import PerceptionOptions
+
+    return PerceptionOptions(
+        camera_position_sigma=args.camera_position_sigma,
+        camera_angle_sigma=args.camera_angle_sigma,
+        depth_bias_sigma=args.depth_bias_sigma,
+        restarts=args.restarts,
+    )
 
 
 def camera_pairs(pairs: Sequence[str]) -> dict[str, Any]:
@@ -47,17 +107,25 @@ def perceive_command(args: argparse.Namespace) -> int:
     problem = load_scene(args.scene)
     camera = scene_camera(problem, args.camera or [])
     noise = replace(NoiseOptions(), scale=args.noise)
-    perception = perceive(problem, camera, noise, rng=np.random.default_rng(args.seed))
+    options = perception_options(args)
+    perception = perceive(
+        problem, camera, noise, rng=np.random.default_rng(args.seed), options=options
+    )
     paths = write_perception(problem, perception, args.out)
     assert problem.object is not None
-    error = (perception.fit.superquadric.position - problem.object.pose[:3]) * 1e3
-    sigma = np.sqrt(np.diag(perception.fit.position_covariance)) * 1e3
+    error = (perception.pose[:3] - problem.object.pose[:3]) * 1e3
+    sigma = np.sqrt(np.diag(perception.position_covariance)) * 1e3
     print(
         f"{problem.object.name}: {perception.fit.points} object points"
         f" ({perception.cloud.dropped} dropped at grazing"
         f" incidence); position error {np.round(error, 1).tolist()} mm, sigma"
         f" {np.round(sigma, 1).tolist()} mm; mean residual"
         f" {perception.fit.mean_residual * 1e3:.2f} mm; u = {perception.u:.3f}"
+        + (
+            f" (median of {len(perception.u_fits)} fits, spread {perception.u_spread:.3f})"
+            if len(perception.u_fits) > 1
+            else ""
+        )
     )
     try:
         from openup_ompl.perception.figure import plot_perception
@@ -94,6 +162,7 @@ def closed_loop_command(args: argparse.Namespace) -> int:
         first_seed=args.seed,
         planner=args.planner,
         time_limit=args.time,
+        perception=perception_options(args),
     )
 
     def progress(line: str) -> None:

@@ -21,7 +21,7 @@ import dataclasses
 import math
 from collections import Counter
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -30,6 +30,7 @@ import numpy as np
 from openup_ompl._io import make_dir
 from openup_ompl.exceptions import ConfigError, InvalidProblem, PerceptionError, PlanningFailed
 from openup_ompl.perception.camera import CameraOptions, DepthCamera, camera_of_scene
+from openup_ompl.perception.extrinsic import PerceptionOptions
 from openup_ompl.perception.noise import NoiseOptions
 from openup_ompl.perception.perceive import at_estimate, perceive
 from openup_ompl.planning import check_planner, check_time_limit
@@ -90,6 +91,8 @@ class ClosedLoopOptions:
             ``position`` there is one view, and ``distances`` must hold one value);
             ``None``: the scene file's ``[camera]`` table, as ``openup-ompl closed-loop``
             reads it (:func:`~openup_ompl.perception.camera.camera_of_scene`).
+        perception: The camera's calibration errors and the estimator's restarts
+            (:class:`~openup_ompl.perception.extrinsic.PerceptionOptions`).
     """
 
     policies: tuple[str, ...] = ("0", "0.3", "1", "covariance")
@@ -100,6 +103,7 @@ class ClosedLoopOptions:
     planner: str = "ikbirrt"
     time_limit: float = 5.0  # [s]
     camera: CameraOptions | None = None
+    perception: PerceptionOptions = field(default_factory=PerceptionOptions)
 
     def __post_init__(self) -> None:
         for name in ("policies", "noises", "distances"):
@@ -205,6 +209,7 @@ def closed_loop(
                         noise=NoiseOptions(scale=noise),
                         depth_camera=camera,
                         rng=np.random.default_rng(seed),
+                        options=options.perception,
                     )
                 except PerceptionError as error:
                     # No estimate, so nothing to plan: the trial is "not seen" (not a

@@ -11,6 +11,7 @@ import numpy as np
 import pinocchio as pin
 
 from openup_ompl._io import make_dir
+from openup_ompl.perception.nominal import nominal_of
 from openup_ompl.perception.perceive import Perception
 from openup_ompl.perception.superquadric import Superquadric
 from openup_ompl.scene import Shape
@@ -32,9 +33,13 @@ def shape_superquadric(shape: Shape) -> Superquadric:
         assert shape.radius is not None and shape.length is not None
         sizes = np.array([shape.radius, shape.radius, shape.length / 2])
         exponents = np.array([0.02, 1.0])
-    else:
+    elif shape.shape == "sphere":
         assert shape.radius is not None
         sizes, exponents = np.full(3, shape.radius), np.ones(2)
+    else:  # a mesh: its bounding box, rounded
+        nominal = nominal_of(shape)
+        sizes, exponents = nominal.half, np.array([0.5, 0.5])
+        placement = placement * pin.SE3(np.eye(3), nominal.centre)
     return Superquadric(sizes, exponents, placement.translation.copy(), placement.rotation.copy())
 
 
@@ -81,7 +86,7 @@ def plot_perception(perception: Perception, truth: Shape, out: Path, title: str 
     top = fig.add_subplot(1, 2, 2)
     top.scatter(points[:, 0], points[:, 1], s=2, c="tab:blue")
     outline = _ellipse(truth.pose[:2], np.eye(2), 1.0)
-    if truth.shape != "box":
+    if truth.shape in ("cylinder", "sphere"):
         assert truth.radius is not None
         top.plot(
             *(truth.pose[:2] + (outline - truth.pose[:2]) * truth.radius).T,
@@ -91,8 +96,8 @@ def plot_perception(perception: Perception, truth: Shape, out: Path, title: str 
         )
     fitted_top = fitted[fitted.shape[0] // 2]  # the equator of the fit
     top.plot(fitted_top[:, 0], fitted_top[:, 1], color="tab:orange", lw=0.8, label="fit")
-    estimate = perception.fit.superquadric.position
-    ellipse = _ellipse(estimate[:2], perception.fit.position_covariance[:2, :2], ELLIPSE_CHI2)
+    estimate = perception.pose[:3]
+    ellipse = _ellipse(estimate[:2], perception.position_covariance[:2, :2], ELLIPSE_CHI2)
     top.plot(*ellipse.T, color="tab:red", label="2-sigma ellipse (95 %)")
     top.plot(*estimate[:2], "+", color="tab:orange", ms=10, label="estimated centre")
     top.plot(*truth.pose[:2], "x", color="k", ms=8, label="true centre")

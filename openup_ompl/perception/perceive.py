@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -23,10 +23,7 @@ from openup_ompl.exceptions import (
     ConfigError,
     DegenerateFit,
     InvalidProblem,
-    ObjectCutOff,
-    ObjectNotVisible,
-    ObjectOccluded,
-    TooFewPoints,
+    PerceptionError,
 )
 from openup_ompl.perception.camera import (
     CameraOptions,
@@ -34,16 +31,20 @@ from openup_ompl.perception.camera import (
     DepthView,
     camera_of_scene,
 )
-from openup_ompl.perception.noise import NoiseOptions, PointCloud, noisy_cloud, normal_sigma
-from openup_ompl.perception.superquadric import (
-    N_PARAMETERS,
-    FitOptions,
-    Silhouette,
-    SuperquadricFit,
-    fit_superquadric,
+from openup_ompl.perception.covariance import SuperquadricFit
+from openup_ompl.perception.estimate import estimate, estimated_pose
+from openup_ompl.perception.extrinsic import (
+    CameraError,
+    PerceptionOptions,
+    draw_camera_error,
+    extrinsic_covariance,
 )
+from openup_ompl.perception.fit import FitOptions, Silhouette, fit_superquadric
+from openup_ompl.perception.noise import NoiseOptions, PointCloud, noisy_cloud, normal_sigma
+from openup_ompl.perception.nominal import nominal_of
 from openup_ompl.perception.uncertainty import u_from_covariance
-from openup_ompl.scene import Problem, Shape
+from openup_ompl.perception.view import checked_view, occluded_outline, silhouette_of
+from openup_ompl.scene import Problem
 
 __all__ = [
     "Perception",
@@ -65,10 +66,17 @@ class Perception:
         cloud: The object's measured points.
         fit: The superquadric fit and its covariance.
         pose: The object's estimated pose ``[x, y, z, qx, qy, qz, qw]`` (world frame), in
-            the scene shape's own frame (:func:`estimated_pose`).
+            the scene shape's own frame (:func:`~openup_ompl.perception.estimate.estimated_pose`).
         u: The hand law's ``u`` from the covariance.
         camera: Camera position [m].
         target: The point [m] it looked at.
+        pose_covariance: ``(6, 6)`` covariance of the estimate's position [m] and a small
+            world-frame rotation [rad]: the fit's (a mesh's registration's) plus the
+            camera's calibration errors' (:mod:`~openup_ompl.perception.extrinsic`), with
+            no variance about a symmetry axis of the shape.
+        camera_error: The view's calibration errors (drawn; the truth, for studies).
+        u_fits: ``u`` of each fit of the view (the points, then bootstrap resamples of
+            them: ``PerceptionOptions.restarts``); ``u`` is their median.
     """
 
     cloud: PointCloud
@@ -77,6 +85,24 @@ class Perception:
     u: float
     camera: np.ndarray
     target: np.ndarray
+    pose_covariance: np.ndarray
+    camera_error: CameraError
+    u_fits: tuple[float, ...] = ()
+
+    @property
+    def u_spread(self) -> float:
+        """Max minus min of :attr:`u_fits` (0 for one fit)."""
+        return float(max(self.u_fits) - min(self.u_fits)) if self.u_fits else 0.0
+
+    @property
+    def position_covariance(self) -> np.ndarray:
+        """``(3, 3)`` covariance [m^2] of the estimated position, world frame."""
+        return self.pose_covariance[:3, :3].copy()
+
+    @property
+    def rotation_covariance(self) -> np.ndarray:
+        """``(3, 3)`` covariance [rad^2] of a small world-frame rotation of the estimate."""
+        return self.pose_covariance[3:, 3:].copy()
 
     def summary(self) -> dict[str, Any]:
         """The estimate as plain JSON-ready values."""
@@ -84,6 +110,8 @@ class Perception:
         return {
             "pose": [float(x) for x in self.pose],
             "u": self.u,
+            "u_fits": list(self.u_fits),
+            "u_spread": self.u_spread,
             "points": self.fit.points,
             "dropped": self.cloud.dropped,
             "sizes": sq.sizes.tolist(),
@@ -91,91 +119,23 @@ class Perception:
             "diameter": self.fit.diameter,
             "mean_residual": self.fit.mean_residual,
             "residual_rms": self.fit.residual_rms,
-            "position_covariance": self.fit.position_covariance.tolist(),
-            "rotation_covariance": self.fit.rotation_covariance.tolist(),
+            "position_covariance": self.position_covariance.tolist(),
+            "rotation_covariance": self.rotation_covariance.tolist(),
+            "pose_covariance": self.pose_covariance.tolist(),
             "camera": self.camera.tolist(),
             "target": self.target.tolist(),
+            "camera_error": {
+                "position": self.camera_error.position.tolist(),
+                "rotation": self.camera_error.rotation.tolist(),
+                "depth_bias": self.camera_error.depth_bias,
+            },
         }
 
 
-def silhouette_of(
-    view: DepthView, noise: NoiseOptions, camera: CameraOptions, support: float | None = None
-) -> Silhouette:
-    """The view's free space: the object's pixels, pixels without a measurement (dropped
-    or no hit: unknown) and pixels whose hit lies in front of the object are allowed;
-    nothing below the ``support``'s height [m] (:meth:`DepthCamera.support_under`)."""
-    valid = _valid(view, noise)
-    shape = (view.height, view.width)
-    return Silhouette.from_view(
-        (view.on_object & valid).reshape(shape),
-        (_occluder(view, noise) | ~valid).reshape(shape),
-        view.position,
-        view.rotation,
-        camera.intrinsics(),
-        support=support,
-    )
-
-
-def _valid(view: DepthView, noise: NoiseOptions) -> np.ndarray:
-    """The pixels measured (a hit, not at grazing incidence)."""
-    return np.asarray(view.hit & (view.incidence <= math.radians(noise.max_incidence)))
-
-
-def _occluder(view: DepthView, noise: NoiseOptions) -> np.ndarray:
-    """The measured pixels off the object nearer than its nearest point: what may hide
-    part of it."""
-    valid = _valid(view, noise)
-    on_object = view.on_object & valid
-    front = np.nanmin(view.depth[on_object]) if on_object.any() else np.inf
-    return np.asarray(valid & ~view.on_object & (view.depth < front))
-
-
-#: Image sides and the step (row, column) to the pixel beyond each.
-_SIDES = {"top": (-1, 0), "bottom": (1, 0), "left": (0, -1), "right": (0, 1)}
-
-
-def occluded_outline(view: DepthView, noise: NoiseOptions) -> dict[str, tuple[int, int]]:
-    """Per image side, the object's outline pixels on it whose next pixel beyond is an
-    occluder (a measured surface nearer than the object's nearest point), and all its
-    outline pixels on it: ``{side: (hidden, outline)}``. The table in front of a standing
-    object's base lies behind its nearest point and hides nothing."""
-    shape = (view.height, view.width)
-    on_object = view.on_object.reshape(shape)
-    occluder = _occluder(view, noise).reshape(shape)
-    counts = {}
-    for side, (dr, dc) in _SIDES.items():
-        # beyond[r, c]: the pixel (r + dr, c + dc), False off the image.
-        inside = np.zeros(shape, dtype=bool)
-        hidden = np.zeros(shape, dtype=bool)
-        rows = slice(max(-dr, 0), shape[0] - max(dr, 0))
-        cols = slice(max(-dc, 0), shape[1] - max(dc, 0))
-        beyond_rows = slice(max(dr, 0), shape[0] + min(dr, 0))
-        beyond_cols = slice(max(dc, 0), shape[1] + min(dc, 0))
-        inside[rows, cols] = on_object[beyond_rows, beyond_cols]
-        hidden[rows, cols] = occluder[beyond_rows, beyond_cols]
-        outline = on_object & ~inside
-        counts[side] = (int(np.count_nonzero(outline & hidden)), int(np.count_nonzero(outline)))
-    return counts
-
-
-#: An image side is hidden when more than this share of the object's outline on it lies
-#: next to an occluder (:func:`occluded_outline`).
-HIDDEN_SHARE = 0.5
-
-
 #: A fitted half-size within this factor of ``FitOptions.min_size`` is a collapsed fit
-#: (:class:`DegenerateFit`). The closed loops' views fit half-sizes of 17 mm and more;
-#: a camera 75 degrees above the LWA3's can fits 2.0 mm, its centre 79 mm too high.
+#: (:class:`DegenerateFit`): a fit collapsed onto the top a steep view sees ends at the
+#: bound itself, and the closed loops' views fit half-sizes several times larger.
 DEGENERATE_FACTOR = 1.5
-
-
-#: The largest ratio of a superquadric's ``a1``, ``a2`` that still reads as a round
-#: section about its z (:func:`_cylinder_axis`).
-ROUND_SECTION = 1.25
-#: The weight of the scene's axis in :func:`_cylinder_axis` against the half-sizes' log
-#: ratios: a tie-breaker (a can of 47 x 23 x 21 mm half-sizes reads 0.87 along its long
-#: axis against 1.77 across it).
-AXIS_PRIOR = 0.2
 
 
 def perceive(
@@ -188,6 +148,7 @@ def perceive(
     depth_camera: DepthCamera | None = None,
     silhouette: bool = True,
     weighted: bool = True,
+    options: PerceptionOptions | None = None,
 ) -> Perception:
     """Look at the scene's object once, fit it, and choose ``u``.
 
@@ -200,9 +161,14 @@ def perceive(
         fit: Superquadric fit options.
         rng: The noise's random generator (default: seed 0).
         depth_camera: An already built camera (many views of one scene).
-        silhouette: Use the view's free space in the fit (:class:`Silhouette`), and the
-            surface under the object as its floor (it stands on the table, not through it).
+        silhouette: Use the view's free space in the fit
+            (:class:`~openup_ompl.perception.fit.Silhouette`), and the surface under the
+            object as its floor (it stands on the table, not through it).
         weighted: Weight the fit by the sensor's noise model (:func:`normal_sigma`).
+        options: The camera's calibration errors (drawn from ``rng`` after the sensor
+            noise, applied to the cloud and added to the covariance) and the estimator's
+            bootstrap refits (their spread of ``u`` is reported; drawn from ``rng`` last);
+            ``PerceptionOptions.exact()``: the sensor noise alone.
 
     Raises:
         ConfigError: ``depth_camera`` was built on another object (or pose) than the
@@ -211,18 +177,117 @@ def perceive(
         TooFewPoints: Too few for the fit.
         ObjectCutOff: The object's pixels reach the image border (the view does not
             bound it).
-        ObjectOccluded: More than :data:`HIDDEN_SHARE` of the object's outline on one
-            image side lies next to a nearer surface (:func:`occluded_outline`), and
-            nothing else bounds it there (the bottom of an object standing on a surface
-            the rays find does not count).
+        ObjectOccluded: More than :data:`~openup_ompl.perception.view.HIDDEN_SHARE` of
+            the object's outline on one image side lies next to a nearer surface
+            (:func:`~openup_ompl.perception.view.occluded_outline`), and nothing else
+            bounds it there (the bottom of an object standing on a surface the rays find
+            does not count).
         DegenerateFit: The fit collapsed onto one face (a half-size within
             :data:`DEGENERATE_FACTOR` of its lower bound).
     """
     noise = noise or NoiseOptions()
+    options = options or PerceptionOptions()
     rng = rng if rng is not None else np.random.default_rng(0)
-    if depth_camera is None and camera is None:
-        camera = camera_of_scene(problem)
-    if depth_camera is not None and not _same_object(depth_camera.problem, problem):
+    cam = _camera(problem, camera, depth_camera)
+    view = cam.render()
+    cloud = noisy_cloud(view, noise, rng)
+    error = draw_camera_error(options, rng)
+    support = checked_view(problem, cam, view, cloud, noise, silhouette)
+    cloud, view, support = _as_believed(cloud, view, error, support)
+    shape = silhouette_of(view, noise, cam.options, support) if silhouette else None
+    weights = normal_sigma(view.position, view.rotation, noise) if weighted else None
+    first = _fitted(problem, cloud.points, fit, shape, weights, support, view, options)
+    result, pose, covariance, u = first
+    fits = [u]
+    for _ in range(options.restarts - 1):
+        # A bootstrap resample of the points: the spread of u is the fit's own instability.
+        sample = cloud.points[rng.integers(0, cloud.points.shape[0], cloud.points.shape[0])]
+        try:
+            fits.append(_fitted(problem, sample, fit, shape, weights, support, view, options)[3])
+        except PerceptionError:
+            continue  # a resample that collapses says nothing of the view's u
+    return Perception(
+        cloud,
+        result,
+        pose,
+        float(np.median(fits)),
+        view.position.copy(),
+        cam.target.copy(),
+        covariance,
+        error,
+        tuple(fits),
+    )
+
+
+def _fitted(
+    problem: Problem,
+    points: np.ndarray,
+    fit: FitOptions | None,
+    shape: Silhouette | None,
+    weights: Callable[[np.ndarray, np.ndarray], np.ndarray] | None,
+    support: float | None,
+    view: DepthView,
+    options: PerceptionOptions,
+) -> tuple[SuperquadricFit, np.ndarray, np.ndarray, float]:
+    """One fit of ``points``: the superquadric, the object's pose, its ``(6, 6)``
+    covariance (the fit's, the calibration errors', no turn about a symmetry axis) and
+    ``u``."""
+    result = fit_superquadric(points, fit, shape, weights)
+    bound = (fit or FitOptions()).min_size
+    if float(np.min(result.superquadric.sizes)) <= DEGENERATE_FACTOR * bound:
+        raise DegenerateFit(result.superquadric.sizes.tolist(), bound)
+    assert problem.object is not None
+    pose, covariance = estimate(
+        result, problem.object, points, weights, support, options.size_sigma
+    )
+    covariance = covariance + extrinsic_covariance(options, view.position, view.rotation, pose[:3])
+    rotation = pin.XYZQUATToSE3(pose).rotation
+    covariance = without_turns(covariance, nominal_of(problem.object).symmetry_axes(rotation))
+    u = u_from_covariance(
+        covariance[:3, :3],
+        covariance[3:, 3:],
+        at_estimate(problem, pose),
+        cross_covariance=covariance[:3, 3:],
+    )
+    return result, pose, covariance, u
+
+
+def _as_believed(
+    cloud: PointCloud, view: DepthView, error: CameraError, support: float | None
+) -> tuple[PointCloud, DepthView, float | None]:
+    """The cloud, the view's camera pose and the support's height as the robot has them:
+    placed by the camera's believed pose, depths offset by the bias (:class:`CameraError`)."""
+    position, rotation = view.position, view.rotation
+    believed = dataclasses.replace(
+        cloud,
+        points=error.apply(cloud.points, position, rotation),
+        scene_points=error.apply(cloud.scene_points, position, rotation),
+    )
+    if support is not None:
+        foot = np.append(cloud.points[:, :2].mean(axis=0), support)
+        support = error.move_height(foot, position, rotation)
+    camera, turned = error.believed(position, rotation)
+    return believed, dataclasses.replace(view, position=camera, rotation=turned), support
+
+
+def without_turns(covariance: np.ndarray, axes: np.ndarray) -> np.ndarray:
+    """A ``(6, 6)`` pose covariance with no rotation about the unit world ``axes`` (rows):
+    a turn about a symmetry axis of the shape moves none of its surface."""
+    if axes.size == 0:
+        return covariance
+    keep = np.eye(6)
+    keep[3:, 3:] -= axes.T @ axes
+    return np.asarray(keep @ covariance @ keep.T)
+
+
+def _camera(
+    problem: Problem, camera: CameraOptions | None, depth_camera: DepthCamera | None
+) -> DepthCamera:
+    """The camera to look with: ``depth_camera`` (built on this problem's object), else one
+    of ``camera`` (None: the scene file's)."""
+    if depth_camera is None:
+        return DepthCamera(problem, camera or camera_of_scene(problem))
+    if not _same_object(depth_camera.problem, problem):
         # Its scene is its own: it would measure that scene's object, reported as this one.
         theirs, ours = (getattr(q.object, "name", None) for q in (depth_camera.problem, problem))
         raise ConfigError(
@@ -230,55 +295,7 @@ def perceive(
             f"a camera on {theirs!r}",
             f"a DepthCamera built on this problem's object ({ours!r}, at the same pose)",
         )
-    cam = depth_camera or DepthCamera(problem, camera)
-    view = cam.render()
-    cloud = noisy_cloud(view, noise, rng)
-    assert problem.object is not None
-    if cloud.points.shape[0] == 0:
-        raise ObjectNotVisible(
-            cam.position.tolist(),
-            cam.target.tolist(),
-            problem.object.name,
-            int(view.hit.sum()),
-            cloud.dropped,
-        )
-    if cloud.points.shape[0] < 2 * N_PARAMETERS:
-        raise TooFewPoints(cloud.points.shape[0], 2 * N_PARAMETERS)
-    on_object = view.on_object.reshape(view.height, view.width)
-    border = {
-        "top": on_object[0],
-        "bottom": on_object[-1],
-        "left": on_object[:, 0],
-        "right": on_object[:, -1],
-    }
-    sides = [side for side, pixels in border.items() if pixels.any()]
-    if sides:
-        # The corner pixels lie on two sides: count each pixel once.
-        edge = on_object.copy()
-        edge[1:-1, 1:-1] = False
-        raise ObjectCutOff(int(edge.sum()), sides)
-    support = cam.support_under(cloud.points, view) if silhouette else None
-    hidden = {
-        side: count
-        for side, (count, outline) in occluded_outline(view, noise).items()
-        if count > HIDDEN_SHARE * outline and not (side == "bottom" and support is not None)
-    }
-    if hidden:
-        raise ObjectOccluded(sum(hidden.values()), list(hidden))
-    shape = silhouette_of(view, noise, cam.options, support) if silhouette else None
-    weights = normal_sigma(cam.position, cam.rotation, noise) if weighted else None
-    result = fit_superquadric(cloud.points, fit, shape, weights)
-    bound = (fit or FitOptions()).min_size
-    if float(np.min(result.superquadric.sizes)) <= DEGENERATE_FACTOR * bound:
-        raise DegenerateFit(result.superquadric.sizes.tolist(), bound)
-    pose = estimated_pose(result, problem.object)
-    u = u_from_covariance(
-        result.position_covariance,
-        result.rotation_covariance,
-        problem,
-        sizes=result.superquadric.sizes,
-    )
-    return Perception(cloud, result, pose, u, cam.position.copy(), cam.target.copy())
+    return depth_camera
 
 
 def _same_object(a: Problem, b: Problem) -> bool:
@@ -288,82 +305,6 @@ def _same_object(a: Problem, b: Problem) -> bool:
     if a.object is None or b.object is None:
         return a.object is b.object
     return a.object.to_table() == b.object.to_table()
-
-
-def estimated_pose(fit: SuperquadricFit, nominal: Shape) -> np.ndarray:
-    """The fitted pose in the frame of the scene's shape.
-
-    The superquadric's frame is one of several equivalent ones: a box's axes may be
-    permuted and flipped, a cylinder's axis flipped and its yaw about the axis is
-    unobservable, a sphere's orientation is. Among the equivalent orientations the one
-    closest to the scene's nominal orientation is returned (harmless: they describe the
-    same solid). A box's axes are matched to the scene's sizes by the fitted half-sizes'
-    order.
-    """
-    sq = fit.superquadric
-    rotation = sq.rotation
-    reference = pin.XYZQUATToSE3(nominal.pose).rotation
-    if nominal.shape == "sphere":
-        rotation = reference
-    elif nominal.shape == "cylinder":
-        assert nominal.radius is not None and nominal.length is not None
-        column = _cylinder_axis(
-            sq.sizes, sq.exponents, nominal.radius, nominal.length / 2, rotation.T @ reference[:, 2]
-        )
-        axis = rotation[:, column] * np.sign(rotation[:, column] @ reference[:, 2] or 1.0)
-        turn = _rotation_between(reference[:, 2], axis)
-        rotation = turn @ reference
-    else:
-        assert nominal.size is not None
-        order = np.argsort(sq.sizes)[np.argsort(np.argsort(np.asarray(nominal.size)))]
-        permuted = rotation[:, order]
-        best, best_angle = permuted, np.inf
-        for signs in ((1, 1, 1), (1, -1, -1), (-1, 1, -1), (-1, -1, 1)):
-            candidate = permuted * np.array(signs, dtype=float)
-            if np.linalg.det(candidate) < 0:
-                candidate = candidate * np.array([1.0, 1.0, -1.0])
-            angle = float(np.linalg.norm(pin.log3(reference.T @ candidate)))
-            if angle < best_angle:
-                best, best_angle = candidate, angle
-        rotation = best
-    return np.asarray(pin.SE3ToXYZQUAT(pin.SE3(rotation, sq.position)), dtype=float)
-
-
-def _cylinder_axis(
-    sizes: np.ndarray,
-    exponents: np.ndarray,
-    radius: float,
-    half_length: float,
-    nominal_axis: np.ndarray,
-) -> int:
-    """Which of the superquadric's axes is the cylinder's. Its own z when it is shaped as
-    a cylinder about z (a round section, ``e2`` >= 0.5, between flat ends, ``e1`` <= 0.5,
-    and ``a1``, ``a2`` within :data:`ROUND_SECTION` of each other). Otherwise the axis
-    whose half-size, with the other two as radii, is the nearest to the nominal cylinder's
-    (by ratio): the fit starts from every principal axis of the cloud, and a superquadric
-    lying across an upright can fits a partial view about as well as one along it. A can
-    as long as it is wide leaves the sizes no say: :data:`AXIS_PRIOR` times the sine of
-    each axis's angle to the scene's ``nominal_axis`` (in the superquadric's frame) then
-    decides."""
-    e1, e2 = exponents
-    if e2 >= 0.5 and e1 <= 0.5 and max(sizes[:2]) <= ROUND_SECTION * min(sizes[:2]):
-        return 2
-    mismatch = [
-        abs(math.log(sizes[k] / half_length))
-        + sum(abs(math.log(sizes[j] / radius)) for j in range(3) if j != k)
-        + AXIS_PRIOR * math.sqrt(max(0.0, 1.0 - float(nominal_axis[k]) ** 2))
-        for k in range(3)
-    ]
-    return int(np.argmin(mismatch))
-
-
-def _rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """The smallest rotation taking unit vector ``a`` onto unit vector ``b``."""
-    axis = np.cross(a, b)
-    sine, cosine = float(np.linalg.norm(axis)), float(a @ b)
-    if sine < 1e-12:
-        return np.eye(3)  # parallel (antiparallel is excluded by the sign choice)
-    return np.asarray(pin.exp3(axis / sine * math.atan2(sine, cosine)))
 
 
 def at_estimate(problem: Problem, pose: np.ndarray) -> Problem:
@@ -387,8 +328,8 @@ def at_estimate(problem: Problem, pose: np.ndarray) -> Problem:
 def perceived_toml(problem: Problem, perception: Perception) -> str:
     """The scene file with ``[object] pose`` at the estimate, ``[grasp] pose`` carried
     along with it (:func:`at_estimate`: the grasp is defined relative to the object) and
-    ``[hand] u`` set; a robot named by a relative path is written as an absolute one, so
-    that the file plans from any directory.
+    ``[hand] u`` set; a robot or a mesh file named by a relative path is written as an
+    absolute one, so that the file plans from any directory.
 
     Raises:
         InvalidProblem: The problem has no object or was not loaded from a scene file.
@@ -401,6 +342,10 @@ def perceived_toml(problem: Problem, perception: Perception) -> str:
     raw = _toml.read_toml(problem.path, "scene file")
     if raw["robot"] not in available_robots():
         raw["robot"] = str(problem.robot.spec.path)
+    base = problem.path.parent
+    for table in [raw["object"], *raw.get("obstacles", [])]:
+        if isinstance(table, dict) and "file" in table:  # a mesh's file, read from anywhere
+            table["file"] = str((base / str(table["file"])).resolve())
     raw["object"] = {**raw["object"], "pose": [round(float(x), 9) for x in perception.pose]}
     raw["hand"] = {**raw.get("hand", {}), "u": round(perception.u, 6)}
     grasp = at_estimate(problem, perception.pose).grasp_pose

@@ -12,7 +12,13 @@ from openup_ompl._model import moved_by
 from openup_ompl.exceptions import ConfigError
 from openup_ompl.scene import Problem
 
-__all__ = ["COVERAGE", "clearance_per_u", "lateral_sigma", "u_from_covariance"]
+__all__ = [
+    "COVERAGE",
+    "clearance_per_u",
+    "closing_direction",
+    "lateral_sigma",
+    "u_from_covariance",
+]
 
 #: Standard deviations of pose error the extra opening must cover (2: about 95 % of a
 #: one-dimensional Gaussian error).
@@ -48,6 +54,23 @@ def _hand_extent(problem: Problem, hand: np.ndarray) -> np.ndarray:
     return np.ptp(points, axis=0)
 
 
+def _opening(problem: Problem) -> tuple[float, np.ndarray, np.ndarray]:
+    """The clearance per side per unit of ``u`` [m], the palm-frame axis it opens along
+    (the hand's closing direction), from the hand's extents at ``u = 0`` and ``u = 1``,
+    and those extents [m] at ``u = 0`` (along the palm's x, y, z)."""
+    law = problem.hand_law
+    approach = np.abs(np.asarray(problem.robot.spec.approach, dtype=float))
+    across = np.flatnonzero(approach < 0.9)  # the palm axes across the approach direction
+    grown = _hand_extent(problem, law.with_options(u=1.0)(law.mga))
+    base = _hand_extent(problem, law.with_options(u=0.0)(law.mga))
+    growth = (grown - base)[across]
+    if not growth.size:
+        return 0.0, np.zeros(3), base
+    axis = np.zeros(3)
+    axis[across[int(np.argmax(growth))]] = 1.0
+    return float(max(np.max(growth) / 2, 0.0)), axis, base
+
+
 def clearance_per_u(problem: Problem) -> float:
     """The extra clearance [m] per side that one unit of ``u`` buys at maximum aperture.
 
@@ -57,13 +80,24 @@ def clearance_per_u(problem: Problem) -> float:
     ``u = 0`` and ``u = 1``; half the largest growth is what each side of the object
     gains: ``k = max_axis (extent(u=1) - extent(u=0)) / 2``.
     """
-    law = problem.hand_law
-    approach = np.abs(np.asarray(problem.robot.spec.approach, dtype=float))
-    across = approach < 0.9  # the palm axes across the approach direction
-    grown = _hand_extent(problem, law.with_options(u=1.0)(law.mga))
-    base = _hand_extent(problem, law.with_options(u=0.0)(law.mga))
-    growth = (grown - base)[across]
-    return float(max(np.max(growth) / 2, 0.0)) if growth.size else 0.0
+    return _opening(problem)[0]
+
+
+def closing_direction(problem: Problem) -> np.ndarray:
+    """The world unit vector along which the hand opens with ``u`` at the grasp (the palm
+    axis across the approach whose extent grows most from ``u = 0`` to ``u = 1``); zeros
+    for a hand that does not open with ``u``."""
+    axis = _opening(problem)[1]
+    return np.asarray(pin.XYZQUATToSE3(problem.grasp_pose).rotation @ axis)
+
+
+def _finger_half_width(problem: Problem) -> float:
+    """Half the hand's extent [m] across both its closing direction and the approach
+    (a finger pad's half-width for a parallel gripper)."""
+    _, axis, extents = _opening(problem)
+    approach = np.abs(np.asarray(problem.robot.spec.approach, dtype=float)) >= 0.9
+    side = ~approach & (axis == 0)
+    return float(extents[side].max() / 2) if side.any() else 0.0
 
 
 def _covariance_matrix(name: str, value: np.ndarray) -> np.ndarray:
@@ -89,38 +123,100 @@ def lateral_sigma(
     rotation_covariance: np.ndarray,
     problem: Problem,
     sizes: np.ndarray | None = None,
+    cross_covariance: np.ndarray | None = None,
 ) -> float:
-    """The pose error's standard deviation [m] that the hand must absorb.
+    """The pose error's standard deviation [m] that the hand's opening must absorb: the
+    error of the object's surface along the grasp's closing direction, at the contacts.
 
-    The position covariance is projected on the plane across the grasp's approach axis
-    (an error along the approach is absorbed by the reach itself) and, for a cylinder,
-    across its axis too (the hand slides along it); its largest standard deviation is
-    taken. A box's yaw about the world z axis adds ``sigma_yaw`` times its half diagonal
-    in the horizontal plane (a cylinder's or sphere's yaw moves no surface).
+    The error of a point ``r`` from the object's centre (world frame) is ``dp + dtheta x r``;
+    along the closing direction ``n`` it is ``g . (dp, dtheta)`` with ``g = (n, r x n)``,
+    whose variance is ``g^T Sigma g`` (``Sigma`` the pose's 6 x 6 covariance). The contacts
+    are taken where the fingers meet the object: the grasp's position relative to the
+    object, clipped to the object's extents (the reach along the approach), and moved
+    along the direction across both the closing direction and the approach to either
+    edge of the fingers there (half the hand's extent that way, at most the object's: a
+    turn about the approach moves a box's face under the finger's edges); the largest
+    variance is taken. An error along the approach is absorbed by the reach itself, and a
+    turn about a symmetry axis of the shape moves no surface: the estimate's covariance
+    carries none (:func:`~openup_ompl.perception.perceive.without_turns`); a
+    covariance given here without it has it removed. The grasp's closing direction is the
+    hand's (:func:`closing_direction`); the object's pose is the problem's.
+
+    Args:
+        position_covariance: ``(3, 3)`` [m^2], world frame.
+        rotation_covariance: ``(3, 3)`` [rad^2] of a small world-frame rotation.
+        problem: The scene at the estimate (object and grasp).
+        sizes: The object's half-extents [m] along its axes (default: the scene shape's).
+        cross_covariance: ``(3, 3)`` covariance between the position and the rotation
+            (default zero).
     """
     shape = problem.object
     if shape is None:
         raise ConfigError("scene: object", None, "an [object] whose pose was estimated")
-    position_covariance = _covariance_matrix("position_covariance", position_covariance)
-    rotation_covariance = _covariance_matrix("rotation_covariance", rotation_covariance)
+    covariance = np.zeros((6, 6))
+    covariance[:3, :3] = _covariance_matrix("position_covariance", position_covariance)
+    covariance[3:, 3:] = _covariance_matrix("rotation_covariance", rotation_covariance)
+    if cross_covariance is not None:
+        covariance[:3, 3:] = np.asarray(cross_covariance, dtype=float)
+        covariance[3:, :3] = covariance[:3, 3:].T
+    from openup_ompl.perception.nominal import nominal_of
+
+    nominal = nominal_of(shape)
+    placement = pin.XYZQUATToSE3(shape.pose)
+    axes = nominal.symmetry_axes(placement.rotation)
+    keep = np.eye(6)
+    if axes.size:
+        keep[3:, 3:] -= axes.T @ axes
+    covariance = keep @ covariance @ keep.T
+    closing = closing_direction(problem)
+    if not np.any(closing):
+        # A hand that does not open: the largest error across the approach, for the record.
+        return _across_approach(covariance[:3, :3], problem)
+    half = np.asarray(sizes, dtype=float) if sizes is not None else nominal.half
+    return math.sqrt(max(0.0, max(_closing_variances(covariance, problem, closing, half))))
+
+
+def _contacts(problem: Problem, closing: np.ndarray, half: np.ndarray) -> list[np.ndarray]:
+    """Points (world, from the object's centre) where the fingers meet the object."""
+    assert problem.object is not None
+    from openup_ompl.perception.nominal import nominal_of
+
+    placement = pin.XYZQUATToSE3(problem.object.pose)
+    centre = placement.act(nominal_of(problem.object).centre)
+    grasp = pin.XYZQUATToSE3(problem.grasp_pose)
+    local = placement.rotation.T @ (grasp.translation - centre)
+    reach = placement.rotation @ np.clip(local, -half, half)
+    reach = reach - (reach @ closing) * closing
+    approach = grasp.rotation @ np.asarray(problem.robot.spec.approach, dtype=float)
+    side = np.cross(closing, approach)
+    if np.linalg.norm(side) < 1e-9:
+        return [reach]
+    side /= np.linalg.norm(side)
+    extent = float(np.abs(placement.rotation.T @ side) @ half)  # the box's support along it
+    extent = min(extent, _finger_half_width(problem))
+    return [reach, reach + extent * side, reach - extent * side]
+
+
+def _closing_variances(
+    covariance: np.ndarray, problem: Problem, closing: np.ndarray, half: np.ndarray
+) -> list[float]:
+    """The error variance [m^2] along ``closing`` at each contact (:func:`_contacts`)."""
+    variances = []
+    for lever in _contacts(problem, closing, half):
+        g = np.concatenate([closing, np.cross(lever, closing)])
+        variances.append(float(g @ covariance @ g))
+    return variances
+
+
+def _across_approach(position_covariance: np.ndarray, problem: Problem) -> float:
+    """The largest standard deviation [m] of the position across the grasp's approach."""
     grasp = pin.XYZQUATToSE3(problem.grasp_pose)
     approach = grasp.rotation @ np.asarray(problem.robot.spec.approach, dtype=float)
-    removed = [approach / np.linalg.norm(approach)]
-    if shape.shape == "cylinder":
-        axis = pin.XYZQUATToSE3(shape.pose).rotation[:, 2]
-        axis = axis - (axis @ removed[0]) * removed[0]
-        if np.linalg.norm(axis) > 1e-6:
-            removed.append(axis / np.linalg.norm(axis))
-    projector = np.eye(3)
-    for direction in removed:
-        projector -= np.outer(direction, direction)
-    variance = float(np.max(np.linalg.eigvalsh(projector @ position_covariance @ projector)))
-    if shape.shape == "box":
-        half = np.asarray(sizes if sizes is not None else np.asarray(shape.size) / 2)
-        radius = float(np.hypot(*np.sort(half)[1:]))  # the two largest half-sides
-        yaw_variance = float(rotation_covariance[2, 2])
-        variance += yaw_variance * radius**2
-    return math.sqrt(max(variance, 0.0))
+    approach /= np.linalg.norm(approach)
+    projector = np.eye(3) - np.outer(approach, approach)
+    return math.sqrt(
+        max(0.0, float(np.max(np.linalg.eigvalsh(projector @ position_covariance @ projector))))
+    )
 
 
 def u_from_covariance(
@@ -130,6 +226,7 @@ def u_from_covariance(
     *,
     sizes: np.ndarray | None = None,
     coverage: float = COVERAGE,
+    cross_covariance: np.ndarray | None = None,
 ) -> float:
     """The hand law's ``u`` that covers ``coverage`` standard deviations of pose error.
 
@@ -146,7 +243,9 @@ def u_from_covariance(
     """
     if not (math.isfinite(coverage) and coverage > 0):
         raise ConfigError("coverage", coverage, "a positive number of standard deviations")
-    sigma = lateral_sigma(position_covariance, rotation_covariance, problem, sizes)
+    sigma = lateral_sigma(
+        position_covariance, rotation_covariance, problem, sizes, cross_covariance
+    )
     k = clearance_per_u(problem)
     if sigma == 0:
         return 0.0

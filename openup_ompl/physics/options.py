@@ -38,8 +38,8 @@ class PhysicsOptions:
         timestep: Simulation step [s] (``implicitfast`` integrator).
         contact_timeconst: Time constant [s] of the object's contacts (MuJoCo's
             ``solref[0]``; the object's contacts use its parameters). MuJoCo's default,
-            0.02 s, let the fingers sink 5-20 mm into a 0.1 kg can under the squeeze;
-            0.004 s (twice the timestep, the stiffest MuJoCo advises) keeps it below ~4 mm.
+            0.02 s, lets the fingers sink into the can under the squeeze; 0.004 s is twice
+            the timestep, the stiffest MuJoCo advises.
         contact_solimp: The object's ``solimp`` (impedance at zero and full depth, the
             depth [m] between them, midpoint, power).
         impratio: MuJoCo's ratio of frictional to normal constraint impedance (with

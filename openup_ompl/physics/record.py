@@ -19,7 +19,7 @@ import numpy as np
 from openup_ompl import _toml
 from openup_ompl._io import json_safe, read_bytes, read_json, write_atomic
 from openup_ompl.exceptions import ConfigError
-from openup_ompl.plan import number_rows
+from openup_ompl.plan_checks import number_rows
 
 __all__ = [
     "EXECUTION_FORMAT",

@@ -69,7 +69,8 @@ from openup_ompl.physics.verdict import (
     pose_change,
 )
 from openup_ompl.plan import Plan, PlanFile
-from openup_ompl.scene import Shape
+from openup_ompl.scene import Problem, Shape
+from openup_ompl.truth import with_true_object
 
 __all__ = [
     "DROPPED_RISE",
@@ -395,22 +396,32 @@ def execute_plan(
     seed: int = 0,
     options: PhysicsOptions | None = None,
     frames: bool = True,
+    truth: Problem | Shape | None = None,
 ) -> ExecutionRecord:
     """Execute a plan file (or a plan, the plan read, or its contents) in physics with the
     object displaced by ``offset = (dx, dy, yaw)`` [m, m, rad] (module docstring);
-    ``seed`` draws the object's jitter (``PhysicsOptions.object_jitter``).
+    ``seed`` draws the object's jitter (``PhysicsOptions.object_jitter``). ``truth``, a
+    scene or a shape, puts the true object in place of the plan's
+    (:func:`~openup_ompl.truth.with_true_object`): a perceived plan against the true pose,
+    ``offset`` then displacing the true object. The path is not re-validated against its
+    scene here (``openup-ompl execute`` does it first:
+    :func:`~openup_ompl.revalidate.revalidate_plan`).
 
     Raises:
         ConfigError: A non-finite offset; a file that is not ``openup-plan/1`` or fails
             the check ``show`` applies (:meth:`~openup_ompl.plan.PlanFile.read`: a
             missing URDF, a path row beyond a joint limit, a bad law, ...); a plan
-            without an object.
+            without an object; a ``truth`` without one or of another robot.
         SimulationDiverged: MuJoCo went unstable (then no verdict is given).
     """
     check_offset(offset)
     if isinstance(plan, (str, os.PathLike)):
         path = Path(plan)
         plan = PlanFile.read(path)
-        if plan.object is None:
+        if plan.object is None and truth is None:
             raise ConfigError(f"{path.name}: scene.object", None, "an object to grasp")
+    if truth is not None:
+        if not isinstance(plan, (Plan, PlanFile)):
+            plan = PlanFile.from_dict(plan, where="plan: ")
+        plan = with_true_object(plan, truth)
     return Rollout(plan, options).run(offset, seed=seed, frames=frames)

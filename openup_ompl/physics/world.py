@@ -17,8 +17,8 @@ Robot geoms collide with the scene, not with each other (the planner checked
 self-collision; MuJoCo's URDF importer would otherwise let neighbouring links that the
 SRDF excludes push each other apart).
 
-Numerics: the ``implicitfast`` integrator (Euler without armature drifted ~0.1 rad on the
-Panda and dropped the object) and the dense constraint Jacobian (``mjJAC_DENSE``: the
+Numerics: the ``implicitfast`` integrator (Euler without armature drifted and dropped the
+object) and the dense constraint Jacobian (``mjJAC_DENSE``: the
 sparse path is never taken, see the README on MuJoCo issue 3767).
 """
 

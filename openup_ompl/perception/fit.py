@@ -1,0 +1,380 @@
+"""Superquadric fit of an object's point cloud (the model:
+:mod:`~openup_ompl.perception.superquadric`; the covariance:
+:mod:`~openup_ompl.perception.covariance`).
+
+Each point's residual is its first-order (Taubin) distance to the surface, ``(G - 1) /
+|grad G|`` [m] with ``G = F^(e1/2)`` (``G`` grows linearly along every ray from the centre,
+so this is the distance along the surface normal up to second order: exactly ``rho - a``
+on a cylinder's side). Solina's volume-weighted ``F^e1 - 1`` and the radial distance
+``|p| (1 - F^(-e1/2))`` both grow with the point's distance from the centre: on a partial
+view they pull the centre away from the seen side by several times the noise, while this
+residual does not.
+
+``scipy.optimize.least_squares`` (trust-region reflective, exponents and sizes bounded)
+is started from the cloud's principal axes, once with each principal axis as the
+superquadric's z axis, and the lowest cost wins: the cylinder is only representable with
+its axis along z, and a partial view's principal axes are not ordered by the object's.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from openup_ompl._toml import is_integer, is_number
+from openup_ompl.exceptions import ConfigError, TooFewPoints
+from openup_ompl.perception.covariance import (
+    COVARIANCES,
+    SuperquadricFit,
+    measurement_rows,
+    parameter_covariance,
+)
+from openup_ompl.perception.superquadric import (
+    N_PARAMETERS,
+    _angles,
+    _distance,
+    _normals,
+    _rotations,
+    _split,
+    _surface_local,
+)
+
+__all__ = ["FitOptions", "Silhouette", "fit_superquadric"]
+
+#: The least RMS spread [m] of a fitted cloud about its mean in its second direction:
+#: 0.1 mm, a hundredth of the sensor noise's size.
+MIN_SPREAD = 1e-4
+
+
+@dataclass(frozen=True)
+class FitOptions:
+    """The superquadric fit's settings.
+
+    Attributes:
+        min_exponent: Lower bound of ``e1``, ``e2`` (sharper edges are not representable;
+            0.05 rounds the last 2 % of a box's half side).
+        max_exponent: Upper bound of ``e1``, ``e2`` (2: the superquadric stays convex).
+        min_size: Lower bound of the half-sizes [m].
+        max_size: Upper bound of the half-sizes [m].
+        starts: Principal axes tried as the superquadric's z axis (1 to 3).
+        trial_evaluations: Residual evaluations of each start before the lowest-cost one
+            is solved to convergence.
+        max_evaluations: Residual evaluations of that solve.
+        covariance: ``"classic"``: ``s^2 (J^T J)^-1``; ``"sandwich"``: ``(J^T J)^-1 J^T
+            diag(r^2) J (J^T J)^-1 n / (n - 11)`` (White's estimator: the same when every
+            residual has one variance, right when they differ, as the depth noise does
+            with depth and incidence).
+    """
+
+    min_exponent: float = 0.05
+    max_exponent: float = 2.0
+    min_size: float = 0.002  # [m]
+    max_size: float = 1.0  # [m]
+    starts: int = 3
+    trial_evaluations: int = 5
+    max_evaluations: int = 200
+    covariance: str = "classic"
+
+    def __post_init__(self) -> None:
+        if not (
+            is_number(self.min_exponent)
+            and is_number(self.max_exponent)
+            and 0.01 <= self.min_exponent < self.max_exponent <= 4.0
+        ):
+            raise ConfigError(
+                "fit.min_exponent, max_exponent",
+                (self.min_exponent, self.max_exponent),
+                "0.01 <= min_exponent < max_exponent <= 4",
+            )
+        if not (is_number(self.min_size) and is_number(self.max_size)) or not (
+            0 < self.min_size < self.max_size
+        ):
+            raise ConfigError(
+                "fit.min_size, max_size", (self.min_size, self.max_size), "0 < min < max [m]"
+            )
+        if not is_integer(self.starts) or self.starts not in (1, 2, 3):
+            raise ConfigError("fit.starts", self.starts, "1, 2 or 3")
+        if not (is_integer(self.max_evaluations) and self.max_evaluations >= 10):
+            raise ConfigError("fit.max_evaluations", self.max_evaluations, "at least 10")
+        if not (is_integer(self.trial_evaluations) and self.trial_evaluations >= 1):
+            raise ConfigError("fit.trial_evaluations", self.trial_evaluations, "at least 1")
+        if self.covariance not in COVARIANCES:
+            raise ConfigError("fit.covariance", self.covariance, f"one of {COVARIANCES}")
+
+
+@dataclass(frozen=True)
+class Silhouette:
+    """Free space seen by the camera: where the object may not project.
+
+    A depth camera also sees past the object: a pixel that saw the table or the wall
+    behind says the object is not in front of it. Without this a partial view leaves the
+    unseen side free (a can's visible front half fits an ellipse reaching centimetres
+    behind it equally well). Each surface sample of the superquadric that projects onto
+    such a pixel adds a residual: its image distance to the allowed region (the object's
+    pixels and pixels of occluders in front of it) beyond one pixel (the object's edge lies
+    somewhere between its last pixel centre and the next), in metres at its depth.
+
+    The camera cannot see through the table the object stands on: a sample below the
+    table's top hides behind it, and a view from above let the fitted can grow through
+    the table, or float above it (the top face seen, the bottom hidden). With the
+    ``support``'s height each sample below it adds its depth below it, and one residual,
+    weighted as all the points together, holds the lowest sample on it: the object stands
+    on its support.
+
+    Attributes:
+        distance: ``(H, W)`` pixel distance to the allowed region (0 inside it).
+        position: Camera position [m], world frame.
+        rotation: Camera frame (x right, y down, z forward) in the world frame.
+        intrinsics: ``(fx, fy, cx, cy)`` [px].
+        samples: Surface sample angles (:func:`~openup_ompl.perception.superquadric._angles`).
+        support: Height [m, world z] of the surface the object stands on (None: unknown).
+    """
+
+    distance: np.ndarray
+    position: np.ndarray
+    rotation: np.ndarray
+    intrinsics: tuple[float, float, float, float]
+    samples: np.ndarray
+    support: float | None = None
+
+    @classmethod
+    def from_view(
+        cls,
+        object_mask: np.ndarray,
+        occluder_mask: np.ndarray,
+        position: np.ndarray,
+        rotation: np.ndarray,
+        intrinsics: tuple[float, float, float, float],
+        samples: tuple[int, int] = (10, 20),
+        support: float | None = None,
+    ) -> Silhouette:
+        """From ``(H, W)`` masks of the object's pixels and of pixels whose hit is in
+        front of the object (where it may hide), and the ``support``'s height."""
+        from scipy.ndimage import distance_transform_edt
+
+        allowed = object_mask | occluder_mask
+        distance = distance_transform_edt(~allowed)
+        return cls(
+            np.asarray(distance, dtype=float),
+            position,
+            rotation,
+            intrinsics,
+            _angles(*samples),
+            support,
+        )
+
+    def excess(self, world: np.ndarray) -> np.ndarray:
+        """Each world point's image distance [m] beyond the allowed region, plus its depth
+        below the :attr:`support`."""
+        from scipy.ndimage import map_coordinates
+
+        fx, fy, cx, cy = self.intrinsics
+        shape = world.shape[:-1]
+        camera = (world.reshape(-1, 3) - self.position) @ self.rotation
+        z = np.maximum(camera[:, 2], 1e-3)
+        column = fx * camera[:, 0] / z + cx - 0.5
+        row = fy * camera[:, 1] / z + cy - 0.5
+        pixels = map_coordinates(self.distance, [row, column], order=1, mode="nearest")
+        excess = (np.maximum(pixels - 1.0, 0.0) * z / fx).reshape(shape)
+        if self.support is None:
+            return excess
+        return excess + np.maximum(self.support - world[..., 2], 0.0)
+
+
+def _batch_residuals(
+    xs: np.ndarray,
+    points: np.ndarray,
+    reference: np.ndarray,
+    silhouette: Silhouette | None = None,
+    weights: np.ndarray | None = None,
+) -> np.ndarray:
+    """Residuals of ``k`` parameter sets at once, ``(k, n [+ m [+ 1]])`` (the points, the
+    silhouette's samples, the resting on the support): one vectorised pass for a whole
+    finite-difference Jacobian (12 sets cost about two single evaluations)."""
+    rotations = reference @ _rotations(xs[:, 8:11])
+    local = (points[None] - xs[:, None, 5:8]) @ rotations
+    sizes, e1, e2 = xs[:, None, 0:3], xs[:, 3:4], xs[:, 4:5]
+    distance = _distance(local, sizes, e1, e2)
+    if weights is not None:
+        distance = distance * weights
+    if silhouette is None:
+        return distance
+    surface = _surface_local(sizes, e1, e2, silhouette.samples)
+    world = surface @ rotations.transpose(0, 2, 1) + xs[:, None, 5:8]
+    excess = silhouette.excess(world)
+    if silhouette.support is None:
+        return np.concatenate([distance, excess], axis=1)
+    # Standing on it: the lowest sample on the support, as strongly as the points weigh.
+    resting = (world[..., 2].min(axis=1) - silhouette.support) * math.sqrt(points.shape[0])
+    return np.concatenate([distance, excess, resting[:, None]], axis=1)
+
+
+def _residuals(x: np.ndarray, *args: Any) -> np.ndarray:
+    return _batch_residuals(x[None], *args)[0]
+
+
+#: Typical magnitudes of the parameters' changes (``least_squares``' ``x_scale``).
+_X_SCALE = np.array([0.01] * 3 + [0.1] * 2 + [0.01] * 3 + [0.1] * 3)
+#: Finite-difference steps of the parameters (sizes and position [m], exponents, [rad]).
+_STEPS = np.array([1e-7] * 3 + [1e-6] * 2 + [1e-7] * 3 + [1e-6] * 3)
+
+
+def _forward_jacobian(x: np.ndarray, *args: Any) -> np.ndarray:
+    """Forward-difference Jacobian (what ``least_squares`` iterates with)."""
+    xs = np.vstack([x, x + np.diag(_STEPS)])
+    values = _batch_residuals(xs, *args)
+    return ((values[1:] - values[0]) / _STEPS[:, None]).T
+
+
+def _jacobian(x: np.ndarray, *args: Any) -> np.ndarray:
+    """Central-difference Jacobian of the residuals, ``(n, 11)`` (for the covariance)."""
+    steps = 10 * _STEPS
+    xs = np.vstack([x + np.diag(steps), x - np.diag(steps)])
+    values = _batch_residuals(xs, *args)
+    return ((values[:N_PARAMETERS] - values[N_PARAMETERS:]) / (2 * steps[:, None])).T
+
+
+def _starts(points: np.ndarray, options: FitOptions) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Initial parameters and reference rotations from the cloud's principal axes."""
+    centre = points.mean(axis=0)
+    _, axes = np.linalg.eigh(np.cov((points - centre).T))
+    axes = axes[:, ::-1]  # largest spread first
+    starts = []
+    for k in range(options.starts):
+        z = axes[:, k]
+        x, y = (axes[:, j] for j in range(3) if j != k)
+        reference = np.column_stack([x, y, z])
+        if np.linalg.det(reference) < 0:
+            reference[:, 0] *= -1
+        local = (points - centre) @ reference
+        half = np.clip(np.ptp(local, axis=0) / 2, 2 * options.min_size, options.max_size / 2)
+        middle = centre + reference @ ((local.max(axis=0) + local.min(axis=0)) / 2)
+        x0 = np.concatenate([half, [0.5, 0.5], middle, np.zeros(3)])
+        starts.append((x0, reference))
+    return starts
+
+
+def fit_superquadric(
+    points: np.ndarray,
+    options: FitOptions | None = None,
+    silhouette: Silhouette | None = None,
+    noise: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
+) -> SuperquadricFit:
+    """Fit a superquadric to ``points`` [m] (world frame) by least squares.
+
+    With a sensor ``noise`` model the fit is a weighted least squares one: each
+    point's residual divided by its noise's standard deviation along the normal of the
+    best start's surface (relative to their mean, so that residuals stay in metres). The depth noise
+    varies tenfold between a surface seen face-on and one seen at grazing incidence, and
+    the grazing points at the object's edges are those that fix its position across the
+    view: unweighted, ``s^2`` (the average noise) understates their noise and the
+    covariance is too small.
+
+    Args:
+        points: The object's points.
+        options: Bounds, starts, covariance estimator.
+        silhouette: The view's free space (:class:`Silhouette`); None: points alone.
+        noise: ``noise(points, normals) -> sigma`` [m], the sensor noise's standard
+            deviation along each unit normal (world frame), e.g.
+            :func:`~openup_ompl.perception.noise.normal_sigma`; None: unweighted.
+
+    Raises:
+        TooFewPoints: Fewer points than twice the 11 parameters (fewer than 11 leaves the
+            fit undetermined; a few more than 11 leave ``s^2`` meaningless).
+        ConfigError: ``points`` not of shape ``(N, 3)``, or not finite, or at one place or
+            on one line.
+    """
+    from scipy.optimize import least_squares
+
+    options = options or FitOptions()
+    points = np.asarray(points, dtype=float)
+    needed = 2 * N_PARAMETERS
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise ConfigError("points", f"an array of shape {points.shape}", "(N, 3) rows [x, y, z]")
+    if points.shape[0] < needed:
+        raise TooFewPoints(int(points.shape[0]), needed)
+    if not np.all(np.isfinite(points)):
+        raise ConfigError("points", "non-finite values", "finite [x, y, z] rows [m]")
+    # Points at one place or on one line leave the surface undetermined, and the fit
+    # then finds a perfect one: a zero covariance, "certain" from no information.
+    spread = np.linalg.svd(points - points.mean(axis=0), compute_uv=False) / math.sqrt(
+        points.shape[0]
+    )
+    if spread[1] < MIN_SPREAD:
+        raise ConfigError(
+            "points",
+            f"{points.shape[0]} points at one place or on a line (spread {spread[1]:.2g} m)",
+            f"points spread over a surface, more than {MIN_SPREAD:g} m in two directions",
+        )
+    low = np.array([options.min_size] * 3 + [options.min_exponent] * 2 + [-np.inf] * 6)
+    high = np.array([options.max_size] * 3 + [options.max_exponent] * 2 + [np.inf] * 6)
+    evaluations = 0
+
+    def solve(x0: np.ndarray, reference: np.ndarray, budget: int, free: Any, *extra: Any) -> Any:
+        nonlocal evaluations
+        result = least_squares(
+            _residuals,
+            np.clip(x0, low + 1e-9, high - 1e-9),
+            bounds=(low, high),
+            args=(points, reference, free, *extra),
+            x_scale=_X_SCALE,
+            max_nfev=budget,
+            method="trf",
+            jac=_forward_jacobian,
+            ftol=1e-7,
+            xtol=1e-7,
+        )
+        evaluations += int(result.nfev)
+        return result
+
+    # Every start gets a few steps on the points alone; the most promising is solved to
+    # convergence, with the free space.
+    trials = [
+        (solve(x0, reference, options.trial_evaluations, None), reference)
+        for x0, reference in _starts(points, options)
+    ]
+    first, reference = min(trials, key=lambda trial: float(trial[0].cost))
+    weights = None
+    if noise is not None:
+        # Weights from the best start's surface: its normals are already close enough.
+        fitted = _split(first.x, reference)
+        local = fitted.local(points)
+        normals = _normals(local, fitted.sizes, *fitted.exponents) @ fitted.rotation.T
+        sigma = noise(points, normals)
+        weights = float(np.mean(sigma)) / sigma
+    result = solve(first.x, reference, options.max_evaluations, silhouette, weights)
+    superquadric = _split(result.x, reference)
+    # Re-linearise about the fitted orientation: the rotation block is then in its frame.
+    x = result.x.copy()
+    x[8:11] = 0.0
+    args = (points, superquadric.rotation, silhouette, weights)
+    residuals = _residuals(x, *args)
+    jacobian = _jacobian(x, *args)
+    n = points.shape[0]
+    rows = measurement_rows(residuals, n, _free_space_rows(silhouette))
+    covariance, unobservable = parameter_covariance(
+        jacobian[rows], residuals[rows], n, options.covariance
+    )
+    unweighted = residuals[:n] / weights if weights is not None else residuals[:n]
+    return SuperquadricFit(
+        superquadric=superquadric,
+        covariance=covariance,
+        residual_rms=float(np.sqrt(unweighted @ unweighted / (n - N_PARAMETERS))),
+        mean_residual=float(np.mean(np.abs(unweighted))),
+        points=n,
+        evaluations=evaluations,
+        unobservable=unobservable,
+        jacobian=jacobian[rows],
+        residuals=residuals[rows],
+        kind=options.covariance,
+    )
+
+
+def _free_space_rows(silhouette: Silhouette | None) -> int:
+    """How many residuals after the points are the free space's (:meth:`Silhouette.excess`
+    of each surface sample)."""
+    return 0 if silhouette is None else int(silhouette.samples.shape[0])
