@@ -88,24 +88,48 @@ PROBLEMS_ROOT = data_dir("problems")
 
 
 def default_problems_dir(robot: str = "panda") -> Path:
-    """The shipped suite of ``robot``: ``benchmarks/problems/<robot>``."""
+    """The shipped suite of ``robot``: ``benchmarks/problems/<robot>``.
+
+    Args:
+        robot: A shipped robot's name.
+
+    Returns:
+        The directory.
+    """
     return PROBLEMS_ROOT / robot
 
 
 def default_problems() -> list[Path]:
-    """Every robot's suite: the directories under :data:`PROBLEMS_ROOT`."""
+    """Every robot's suite: the directories under :data:`PROBLEMS_ROOT`.
+
+    Returns:
+        The suite directories, sorted.
+    """
     return sorted(path for path in PROBLEMS_ROOT.iterdir() if path.is_dir())
 
 
 def problem_id(path: Path) -> str:
     """``<robot>.<scene>``: the problem's name in task keys, the database and the tables
-    (the suites of different robots use the same scene names)."""
+    (the suites of different robots use the same scene names).
+
+    Args:
+        path: The scene file (``.../<robot>/<scene>.toml``).
+
+    Returns:
+        The id.
+    """
     robot = _toml.read_toml(Path(path), "scene file").get("robot", "")
     return f"{Path(str(robot)).stem}.{Path(path).stem}"
 
 
 def find_problems(paths: Sequence[str | Path]) -> list[Path]:
     """Scene files from directories (their ``*.toml``, sorted) and files.
+
+    Args:
+        paths: Scene files and directories of them.
+
+    Returns:
+        The scene files, in order, each once.
 
     Raises:
         ConfigError: A path that does not exist, no scene file at all, or two scenes of
@@ -148,6 +172,17 @@ def make_tasks(
     Run ``i`` has seed ``seed + i`` for every problem, planner and hand, so the
     configurations are compared on the same seeds. The keys carry a digest of the time
     limit, the first seed and the problem's files (:func:`~openup_ompl.executor.settings_digest`).
+
+    Args:
+        problems: Scene files.
+        planners: Planner names.
+        runs: Runs per problem, planner and hand.
+        time_limit: Time limit per run [s].
+        hands: ``"law"`` and/or ``"fixed"``.
+        seed: Seed of run 0.
+
+    Returns:
+        The tasks, each with its key and arguments.
 
     Raises:
         ConfigError: Unknown planner or hand, ``runs`` outside ``[1, MAX_RUNS]``, seeds
@@ -192,6 +227,13 @@ def benchmark_run(
     seed: int, problem: str, planner: str, hand: str, time_limit: float
 ) -> dict[str, Any]:
     """One run through ``ompl.tools.Benchmark`` (inside a task process).
+
+    Args:
+        seed: The run's seed (OMPL's generator and ours).
+        problem: The scene file's path.
+        planner: A planner name of :data:`~openup_ompl.planning.PLANNERS`.
+        hand: ``"law"`` or ``"fixed"`` (the hand frozen at ``w``).
+        time_limit: The run's time limit [s].
 
     Returns:
         The record: OMPL's log text (``log``), OMPL's run properties (``time``,
@@ -255,6 +297,13 @@ def build_database(records: Sequence[dict[str, Any]], out: Path) -> Path:
     """Write the OMPL logs, build ``benchmark.db`` with ``ompl_benchmark_statistics``
     and add :data:`EXTRA_COLUMNS` to its ``runs`` table.
 
+    Args:
+        records: The runs' records (:func:`benchmark_run`).
+        out: The output directory.
+
+    Returns:
+        The database's path (``out/benchmark.db``).
+
     Raises:
         InvalidProblem: No run has a log: no problem could be set up (each named with
             why).
@@ -302,7 +351,14 @@ def build_database(records: Sequence[dict[str, Any]], out: Path) -> Path:
 def summarize(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     """Per (problem, planner, hand): runs, success, median and 95th-percentile solve time
     (a failed run counts as its time), mean path length and counters of the solved runs
-    (``None`` when no run was solved)."""
+    (``None`` when no run was solved).
+
+    Args:
+        records: The runs' records.
+
+    Returns:
+        One row per (problem, planner, hand), as in ``summary.json``; times in s.
+    """
     groups: dict[tuple[str, str, str], list[dict[str, Any]]] = {}
     for record in records:
         key = (record["problem"], record["planner"], record["hand"])
@@ -337,6 +393,13 @@ def summarize(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
 def plot_results(rows: Sequence[dict[str, Any]], out: Path) -> list[Path]:
     """``solve_time.png`` (median bars, 95th-percentile whiskers, log scale) and
     ``success.png`` per problem and planner configuration.
+
+    Args:
+        rows: The summary rows (:func:`summarize`).
+        out: The output directory.
+
+    Returns:
+        The PNG paths written.
 
     Raises:
         MissingExtra: matplotlib is not installed.
@@ -395,7 +458,16 @@ def markdown_table(rows: Sequence[dict[str, Any]]) -> str:
 
 @dataclass(frozen=True)
 class BenchmarkResult:
-    """Where a benchmark wrote its outputs, and its summary rows."""
+    """Where a benchmark wrote its outputs, and its summary rows.
+
+    Attributes:
+        database: ``benchmark.db`` (OMPL's schema, plus the extra ``runs`` columns).
+        logs: The directory of OMPL's log files.
+        summary: ``summary.json``.
+        plots: The PNG plots written (empty without matplotlib or with ``plots=False``).
+        rows: The summary rows (:func:`summarize`).
+        records: Every run's record.
+    """
 
     database: Path
     logs: Path
@@ -433,6 +505,10 @@ def run_benchmark(
         seed: Seed of run 0 (run ``i`` uses ``seed + i``).
         plots: Draw the PNG plots (skipped with a note when matplotlib is missing).
         quiet: No progress on stderr.
+
+    Returns:
+        The summary rows, the database's path and the plots written
+        (:class:`BenchmarkResult`).
 
     Raises:
         ConfigError: What :func:`find_problems` and :func:`make_tasks` raise, or a scene

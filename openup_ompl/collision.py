@@ -66,6 +66,14 @@ def self_margins(problem: Problem, geometry_model: pin.GeometryModel, padding: f
     the sum of their moves, so self-collision pairs keep up to twice the padding, and a
     motion check covers self-collision between its states as it covers the environment.
     Pairs inside the hand (moved relative to each other only by the fingers) keep 0.
+
+    Args:
+        problem: The loaded scene (its robot's motion bounds).
+        geometry_model: The world's geometry model and its collision pairs.
+        padding: The world's padding [m].
+
+    Returns:
+        One margin [m] per collision pair of ``geometry_model``.
     """
     margins = np.zeros(len(geometry_model.collisionPairs))
     if padding <= 0.0:
@@ -93,7 +101,15 @@ def _with_margins(geometry_data: pin.GeometryData, margins: np.ndarray) -> pin.G
 
 @dataclass
 class ThreadContext:
-    """One thread's scratch: Pinocchio data, Coal data and manager, a full ``q``."""
+    """One thread's scratch data for collision checks.
+
+    Attributes:
+        data: Pinocchio data of the robot's model.
+        geometry_data: Pinocchio/Coal geometry data of the world's geometry model.
+        manager: Coal's broadphase manager over that geometry.
+        q: A full configuration [rad or m], written before each check.
+        hand: A buffer for the hand joint values [rad or m] the law computes.
+    """
 
     data: pin.Data
     geometry_data: pin.GeometryData
@@ -116,6 +132,14 @@ def build_collision_model(
     Each environment shape is grown by ``padding`` [m] plus the robot's own
     ``spec.padding`` on every side (the robot's is never halved). Self-collision pairs get
     their margins from the world (:func:`self_margins`), not from the geometry.
+
+    Args:
+        problem: The loaded scene (robot, obstacles, object).
+        environment: The shapes to collide with (default: the obstacles and the object).
+        padding: Growth of every environment shape [m].
+
+    Returns:
+        The Pinocchio geometry model with its collision pairs.
     """
     robot = problem.robot
     model = robot.collision_model.copy()
@@ -168,7 +192,11 @@ class CollisionWorld:
         self._pool_lock = threading.Lock()
 
     def context(self) -> ThreadContext:
-        """This thread's Pinocchio and Coal scratch data (created on first use)."""
+        """This thread's Pinocchio and Coal scratch data (created on first use).
+
+        Returns:
+            The calling thread's :class:`ThreadContext`.
+        """
         try:
             return self._local.context  # type: ignore[no-any-return]
         except AttributeError:
@@ -186,7 +214,14 @@ class CollisionWorld:
             return context
 
     def in_collision(self, q: np.ndarray) -> bool:
-        """Whether the full configuration ``q`` collides (self, obstacles or object)."""
+        """Whether the full configuration ``q`` collides (self, obstacles or object).
+
+        Args:
+            q: Full configuration [rad or m], Pinocchio's ``q`` order.
+
+        Returns:
+            True if any tested pair collides (with its margin).
+        """
         context = self.context()
         return bool(pin.computeCollisions(self.model, context.data, context.manager, q, True))
 
@@ -199,6 +234,13 @@ class CollisionWorld:
         every batch of a one-thread world, are checked one by one in this thread: waking
         the pool's sleeping threads costs more than a small batch's single checks
         (``benchmarks/bench_speed.py``).
+
+        Args:
+            qs: Full configurations [rad or m] as columns, ``(nq, N)``.
+            stop_at_first: Stop at the first colliding configuration.
+
+        Returns:
+            ``(N,)`` booleans, True where a configuration collides.
         """
         n = qs.shape[1]
         if self.num_threads == 1 or n < PARALLEL_MIN_STATES:
@@ -227,7 +269,14 @@ class CollisionWorld:
     def colliding_pairs(self, q: np.ndarray) -> list[tuple[str, str]]:
         """Names of the geometry pairs in collision at ``q``, each with its margin (the
         padding, and between the robot's own links :func:`self_margins`), as
-        :meth:`in_collision` checks them: for error messages."""
+        :meth:`in_collision` checks them: for error messages.
+
+        Args:
+            q: Full configuration [rad or m].
+
+        Returns:
+            ``(geometry, geometry)`` name pairs, empty when ``q`` is free.
+        """
         data = self.model.createData()
         geometry_data = _with_margins(
             _without_warm_start(self.geometry_model.createData(), distances=False), self.margins
@@ -243,7 +292,14 @@ class CollisionWorld:
         ]
 
     def touches_environment(self, q: np.ndarray) -> bool:
-        """Whether ``q`` collides with an obstacle or the object (self-collision aside)."""
+        """Whether ``q`` collides with an obstacle or the object (self-collision aside).
+
+        Args:
+            q: Full configuration [rad or m].
+
+        Returns:
+            True if a robot geometry touches an environment shape.
+        """
         context = self.context()
         geometry_data = context.geometry_data
         pin.computeCollisions(

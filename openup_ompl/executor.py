@@ -123,6 +123,9 @@ def seed_ompl(seed: int) -> None:
 
     OMPL refuses 0 with a two-line warning on stderr and draws as from 1: 0 is given 1
     here, the same draws without the warning.
+
+    Args:
+        seed: The seed, an integer in ``[0, 2^31)``.
     """
     from ompl import util as ompl_util
 
@@ -155,6 +158,12 @@ class Task:
             raise ConfigError("task function", self.function, "'module:function'")
 
     def to_json(self) -> str:
+        """The task as JSON (its key, function, keyword arguments and seed): what
+        :func:`run_task_process` takes.
+
+        Returns:
+            The JSON text.
+        """
         return json.dumps(asdict(self), sort_keys=True)
 
 
@@ -162,14 +171,30 @@ def settings_digest(settings: dict[str, Any], files: Iterable[Path]) -> str:
     """A short digest of a sweep's ``settings`` (JSON values) and of the contents of the
     ``files`` its runs read, for its task keys: a rerun into the same shards reuses a
     finished run only when neither changed (a can's radius edited in the scene file, a
-    joint limit in the URDF, another time limit give other keys)."""
+    joint limit in the URDF, another time limit give other keys).
+
+    Args:
+        settings: The sweep's settings, JSON values.
+        files: The files its runs read.
+
+    Returns:
+        A hexadecimal digest (10 characters).
+    """
     contents = [hashlib.sha1(Path(file).read_bytes()).hexdigest() for file in files]
     keyed = json.dumps({**settings, "contents": contents}, sort_keys=True)
     return hashlib.sha1(keyed.encode()).hexdigest()[:10]
 
 
 def shard_path(shards: Path, key: str) -> Path:
-    """The shard file of the task ``key``."""
+    """The shard file of the task ``key``.
+
+    Args:
+        shards: Directory of the shard files.
+        key: The task's key.
+
+    Returns:
+        ``shards / <key>.json``.
+    """
     return Path(shards) / f"{key}.json"
 
 
@@ -193,6 +218,14 @@ def run_task_process(task_json: str, shards: str, timeout: float | None = None) 
     This is what each executor calls (a Dask worker included): it is a plain function of
     strings, so it pickles. A process that dies leaves no shard and raises
     ``RuntimeError``, which makes the executor retry the task.
+
+    Args:
+        task_json: The task (:meth:`Task.to_json`).
+        shards: Directory of the shard files.
+        timeout: Wall-clock limit [s] of the process (``None``: none).
+
+    Returns:
+        The task's key.
     """
     task = Task(**json.loads(task_json))
     target = shard_path(Path(shards), task.key)
@@ -265,6 +298,9 @@ def run_tasks(
         timeout: Wall-clock limit [s] per task process (``None``: none).
         quiet: No progress on stderr (else one updating line on a terminal, a line per
             tenth of the runs otherwise).
+
+    Returns:
+        The keys of the tasks that ran now (those already finished are skipped).
 
     Raises:
         ConfigError: Duplicate keys, ``workers`` below 1, ``retries`` below 0, or a
@@ -374,7 +410,15 @@ def _run_dask(
 
 
 def load_records(tasks: Iterable[Task], shards: str | Path) -> list[dict[str, Any]]:
-    """The records of the tasks that have a shard, in task order (one per key)."""
+    """The records of the tasks that have a shard, in task order (one per key).
+
+    Args:
+        tasks: The sweep.
+        shards: Directory of the shard files.
+
+    Returns:
+        The finished tasks' records (their result dictionaries).
+    """
     records = []
     for task in tasks:
         path = shard_path(Path(shards), task.key)
@@ -393,6 +437,15 @@ def selfcheck_task(
     its own process (``kill="self"``, a crashed run), or with ``kill="worker"`` the
     process that launched it, then its own (a Dask worker dying mid-task). ``fail``
     raises instead.
+
+    Args:
+        seed: The task's seed.
+        marker: A file whose absence makes the run kill itself after creating it.
+        kill: ``"self"`` or ``"worker"``: which process the first run kills.
+        fail: Raise instead of returning.
+
+    Returns:
+        ``{"seed": seed, "draws": [three uniform draws], "pid": process id}``.
     """
     import signal
 

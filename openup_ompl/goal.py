@@ -43,8 +43,16 @@ def check_retreat(
     max_joint_step: float,
     names: tuple[str, str, str] = ("length", "step", "max_joint_step"),
 ) -> tuple[float, float, float]:
-    """A retreat's ``length`` [m] in ``[0, MAX_RETREAT]``, palm ``step`` [m] of at least
-    :data:`MIN_RETREAT_STEP` and positive ``max_joint_step`` [rad], as floats.
+    """A retreat's length, palm step and joint-step bound, checked.
+
+    Args:
+        length: The retreat's length [m], in ``[0, MAX_RETREAT]``.
+        step: The palm's step [m], at least :data:`MIN_RETREAT_STEP`.
+        max_joint_step: The largest arm motion per step [rad, Euclidean norm], positive.
+        names: The names the three values are refused under.
+
+    Returns:
+        ``(length, step, max_joint_step)`` as floats.
 
     Raises:
         ConfigError: Naming the bad one by its entry of ``names``.
@@ -88,11 +96,20 @@ class GraspGoal:
 
     @property
     def ik_calls(self) -> int:
+        """IK solves run so far (the solver's count of calls)."""
         return self.ik.calls
 
     def sample(self, max_restarts: int | None = None) -> np.ndarray | None:
-        """A new collision-free IK solution (``max_restarts`` random restarts at most,
-        ``None``: the IK options'), or ``None``.
+        """A new collision-free IK solution of the grasp pose.
+
+        Args:
+            max_restarts: Random restarts at most (an integer >= 1; ``None``: the IK
+                options').
+
+        Returns:
+            The arm's joint values [rad or m] of a solution collision-free with the law's
+            hand at the grasp (added to :attr:`solutions`), or ``None`` if the restarts
+            found none.
 
         Raises:
             ConfigError: ``max_restarts`` is not an integer >= 1 (or ``None``).
@@ -112,7 +129,17 @@ class GraspGoal:
         return None
 
     def ensure_solution(self, max_restarts: int = 200) -> np.ndarray:
-        """At least one collision-free solution, or :class:`UnreachableGrasp`."""
+        """At least one collision-free solution of the grasp pose, before any planning.
+
+        Args:
+            max_restarts: Random restarts allowed to find the first one.
+
+        Returns:
+            The first solution's arm joint values [rad or m].
+
+        Raises:
+            UnreachableGrasp: No solution, or none free of collisions (with the counts).
+        """
         if self.solutions:
             return self.solutions[0]
         calls_before = self.ik.calls
@@ -136,10 +163,15 @@ class GraspGoal:
         self, root: np.ndarray, length: float, step: float, max_joint_step: float
     ) -> list[np.ndarray]:
         """The straight palm retreat from the grasp configuration ``root``: the palm backs
-        away against the robot's approach direction (``approach`` in the robot file) in
-        steps of ``step`` [m], up to ``length``, each motion checked with the law. A step
-        that collides, that IK cannot reach, or that moves the arm more than
-        ``max_joint_step`` [rad, Euclidean norm] (near a singularity) ends it.
+        away against the robot's approach direction (``approach`` in the robot file), each
+        motion checked with the law. A step that collides, that IK cannot reach, or that
+        moves the arm more than ``max_joint_step`` (near a singularity) ends it.
+
+        Args:
+            root: The grasp configuration's arm joint values [rad or m].
+            length: The retreat's length [m], in ``[0, MAX_RETREAT]``.
+            step: The palm's step [m], at least :data:`MIN_RETREAT_STEP`.
+            max_joint_step: The largest arm motion per step [rad, Euclidean norm].
 
         Returns:
             The configurations from ``root`` (first) to the retreat's end (last); only
@@ -164,8 +196,15 @@ class GraspGoal:
         return chain
 
     def task_error(self, arm: np.ndarray) -> float:
-        """Task-space distance to the grasp [m]: position error plus
-        :data:`ROTATION_WEIGHT` times the rotation error."""
+        """Task-space distance of an arm configuration's palm to the grasp pose.
+
+        Args:
+            arm: The arm's joint values [rad or m].
+
+        Returns:
+            The position error [m] plus :data:`ROTATION_WEIGHT` [m/rad] times the rotation
+            error [rad].
+        """
         q = self._q
         q[self.checker.robot.arm_idx] = arm
         placement = self.checker.robot.palm_placement(self._data, q)
@@ -249,6 +288,14 @@ class IKGoalRegion(ob.GoalSampleableRegion):
         goal.ensure_solution()
 
     def sampleGoal(self, state: ob.State) -> None:  # noqa: N802 - OMPL's name
+        """OMPL's goal sampling: writes a new goal into ``state``.
+
+        A new IK solution of the grasp (five restarts; else one already found), backed off
+        to its pregrasp state when the region has a ``pregrasp`` length.
+
+        Args:
+            state: The OMPL state to fill with the arm's joint values [rad or m].
+        """
         self.draws += 1
         self.motions_at_draw = self.goal.checker.motions_checked
         arm = self.goal.sample(max_restarts=5)
@@ -295,7 +342,14 @@ class IKGoalRegion(ob.GoalSampleableRegion):
 
     def is_pregrasp(self, arm: ob.State | np.ndarray | Sequence[float]) -> bool:
         """Whether ``arm`` (an OMPL state or the arm joint values [rad or m], bit for bit)
-        is a pregrasp state this region sampled."""
+        is a pregrasp state this region sampled.
+
+        Args:
+            arm: An OMPL state of the arm's space, or the arm joint values [rad or m].
+
+        Returns:
+            True if the region sampled ``arm`` as the end of a retreat.
+        """
         return self._retreat_to(arm) is not None
 
     def approach(self, arm: ob.State | np.ndarray | Sequence[float]) -> np.ndarray:
@@ -334,14 +388,34 @@ class IKGoalRegion(ob.GoalSampleableRegion):
         self._draws_before = self.draws  # a planner counts its own draws from 0
 
     def maxSampleCount(self) -> int:  # noqa: N802 - OMPL's name
+        """OMPL's bound on the goals a planner may draw.
+
+        Returns:
+            ``max_samples``; past the :attr:`deadline`, only the goals drawn so far (at
+            least one).
+        """
         if self._deadline is not None and time.perf_counter() >= self._deadline:
             return min(max(1, self.draws - self._draws_before), self.max_samples)
         return self.max_samples
 
     def couldSample(self) -> bool:  # noqa: N802 - OMPL's name
+        """OMPL's question whether more goals may come.
+
+        Returns:
+            Always True: IK can always be tried again.
+        """
         return True
 
     def distanceGoal(self, state: ob.State) -> float:  # noqa: N802 - OMPL's name
+        """OMPL's distance of a state to the goal.
+
+        Args:
+            state: An OMPL state of the arm's space.
+
+        Returns:
+            0 on a pregrasp state this region sampled, else the palm's task-space error to
+            the grasp [m] (:meth:`GraspGoal.task_error`; infinite if not finite).
+        """
         arm = np.array(state[0 : self._n])
         if self._retreats and self.is_pregrasp(arm):
             return 0.0

@@ -156,6 +156,12 @@ def closed_configuration(problem: Problem) -> np.ndarray:
     The robot file's ``[hand].closed``, or else for each joint the limit on ``c``'s side
     of ``w`` (the Panda's fingers close to 0, the Allegro's flex to their upper limits);
     a joint with ``c == w`` keeps its value.
+
+    Args:
+        problem: The loaded scene (its robot's hand and law).
+
+    Returns:
+        The driven hand joints' targets [rad or m].
     """
     robot = problem.robot
     n = robot.n_driven
@@ -281,6 +287,9 @@ class HandCloser:
     def close(self, q: np.ndarray) -> GraspResult:
         """Close the fingers from the full configuration ``q`` (arm and hand fixed there).
 
+        Args:
+            q: The full configuration (arm and hand) [rad or m], Pinocchio's ``q`` order.
+
         Returns:
             The hand after closing: configuration, contacts on the object and on
             obstacles, and the joints that closed fully.
@@ -394,13 +403,30 @@ def close_hand(
     problem: Problem, q: np.ndarray, options: ClosingOptions | None = None
 ) -> GraspResult:
     """Close the hand of ``problem``'s robot at the full configuration ``q`` onto its
-    object (see :class:`HandCloser`)."""
+    object (see :class:`HandCloser`).
+
+    Args:
+        problem: The loaded scene (robot, object, obstacles).
+        q: The full configuration [rad or m] (a plan's last row).
+        options: Closing tolerance and steps (default :class:`ClosingOptions`).
+
+    Returns:
+        The hand after closing (:class:`GraspResult`): configuration, contacts, the
+        joints that closed fully.
+    """
     return HandCloser(problem, options).close(q)
 
 
 def object_axis(shape: Shape) -> np.ndarray | None:
     """The object's long axis in the world frame: a cylinder's z, a box's longest side,
-    a mesh's longest bounding-box side (in its file's frame); ``None`` for a sphere."""
+    a mesh's longest bounding-box side (in its file's frame); ``None`` for a sphere.
+
+    Args:
+        shape: The object.
+
+    Returns:
+        A unit vector ``(3,)`` in the world frame, or ``None``.
+    """
     rotation = shape.placement.rotation
     if shape.shape == "cylinder":
         return np.array(rotation[:, 2])

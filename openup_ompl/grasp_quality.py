@@ -72,6 +72,12 @@ def _tangents(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def check_torsion(torsion: float) -> float:
     """``torsion`` if it is a soft-finger torsional friction lever in [0, MAX_TORSION] m.
 
+    Args:
+        torsion: The lever [m].
+
+    Returns:
+        ``torsion`` as a float [m].
+
     Raises:
         ConfigError: Otherwise.
     """
@@ -88,6 +94,12 @@ def positively_spans(vectors: np.ndarray) -> bool:
     Exactly when they have rank ``m`` and some combination with every coefficient at
     least 1 sums to zero (then any vector is a positive combination, and conversely);
     the second part is a linear-programming feasibility problem.
+
+    Args:
+        vectors: The vectors as columns, ``(m, K)``.
+
+    Returns:
+        True if every vector of R^m is a non-negative combination of the columns.
     """
     from scipy.optimize import linprog
 
@@ -127,6 +139,19 @@ def contact_wrenches(
     friction, about ``2/3 friction`` times the contact patch radius), linearised by two
     more generators ``[n, (p - center) x n / scale +- torsion n / scale]``: an inner
     approximation of the soft-finger limit, so a grasp found in force closure is one.
+
+    Args:
+        points: Contact points ``(K, 3)`` [m], world frame.
+        normals: Inward contact normals ``(K, 3)``.
+        friction: Coulomb coefficient.
+        edges: Generators of each linearised cone.
+        center: Torque reference [m] (default: the contacts' centroid).
+        torsion: Soft-finger torsional friction [m] (0: point contacts).
+
+    Returns:
+        The wrenches as columns ``(6, K * edges)``, or ``(6, K * (edges + 2))`` with
+        ``torsion``; forces in units of the normal force, torques divided by the mean
+        contact distance (so dimensionless).
     """
     p, n = _as_contacts(points, normals, "contact_wrenches")
     if not (is_finite(friction) and friction >= 0):
@@ -176,6 +201,9 @@ def force_closure(
         torsion: Soft-finger torsional friction [m] (0: point contacts, under which two
             contacts are never in force closure: nothing resists a rotation about the
             line through them).
+
+    Returns:
+        True if the contacts' wrenches positively span R^6.
     """
     wrenches = contact_wrenches(
         points, normals, friction=friction, edges=edges, center=center, torsion=torsion
@@ -192,6 +220,10 @@ def enclosed(normals: object, axis: Sequence[float] | np.ndarray | None = None) 
         normals: Inward contact normals ``(K, 3)``.
         axis: The object's long axis (:func:`object_axis`); ``None`` (a sphere) uses the
             normal of the plane the contact normals lie closest to.
+
+    Returns:
+        True if the projected normals positively span the plane (fewer than 3
+        contacts never do).
     """
     n = _rows(normals, "enclosed: normals")
     if not np.isfinite(n).all():

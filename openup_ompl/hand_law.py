@@ -44,6 +44,9 @@ def palm_distance(
         goal_rotation_t: The transpose of the grasp rotation, or ``None`` for the
             translation alone.
         rotation_weight: [m/rad].
+
+    Returns:
+        The distance [m].
     """
     p = placement.translation
     dx, dy, dz = p[0] - goal_position[0], p[1] - goal_position[1], p[2] - goal_position[2]
@@ -322,6 +325,12 @@ class HandLaw:
         """Hand configurations for a vector of finite distances ``>= 0``: shape
         ``(len(d), size)``.
 
+        Args:
+            d: Normalised distances (Algorithm 1), finite and ``>= 0``.
+
+        Returns:
+            Hand joint values [rad or m], shape ``(len(d), size)``.
+
         Raises:
             ConfigError: ``d`` is not a vector of finite numbers ``>= 0``.
         """
@@ -335,7 +344,14 @@ class HandLaw:
         shape ``(size, len(d))``: :meth:`batch` transposed, without its check of ``d``
         (the planner's hot path, given the distances it computed; the low branch is
         clipped to the joint limits only if it leaves them on ``[0, mga]``, so a negative
-        ``d`` may be extrapolated beyond them)."""
+        ``d`` may be extrapolated beyond them).
+
+        Args:
+            d: Normalised distances (Algorithm 1).
+
+        Returns:
+            Hand joint values [rad or m], shape ``(size, len(d))``.
+        """
         d = np.asarray(d, dtype=float)
         if self.fixed_clipped is not None:
             return np.repeat(self.fixed_clipped[:, None], d.size, axis=1)
@@ -368,6 +384,9 @@ class HandLaw:
             where: Prefix of error locations (file and table, e.g. ``"scene.toml: hand"``).
             ignore: Further keys to skip (e.g. the plan file's ``start_palm_distance``).
 
+        Returns:
+            The law, checked.
+
         Raises:
             ConfigError: An unknown key (naming the nearest valid one), a missing
                 ``c``/``b``/``w``/``u``/``mga``, or a bad value, located at ``where.key``.
@@ -391,6 +410,12 @@ class HandLaw:
         """A copy with some fields replaced (e.g. ``u``), validated again
         (``dataclasses.replace``).
 
+        Args:
+            **changes: Field name -> new value (e.g. ``u=0.3``, ``fixed=None``).
+
+        Returns:
+            The new law.
+
         Raises:
             ConfigError: A field that is not one of :data:`TABLE_FIELDS` (naming the
                 nearest), or a bad value.
@@ -401,7 +426,11 @@ class HandLaw:
         return dataclasses.replace(self, **changes)  # type: ignore[arg-type]
 
     def to_dict(self) -> dict[str, object]:
-        """The law as written in a plan file (README, Files: Plan, ``hand_law``)."""
+        """The law as written in a plan file (``hand_law``, see the file formats).
+
+        Returns:
+            Field name -> value (lists for the arrays), JSON-ready.
+        """
         values = {name: getattr(self, name) for name in TABLE_FIELDS}
         return {k: v.tolist() if isinstance(v, np.ndarray) else v for k, v in values.items()}
 
@@ -447,7 +476,14 @@ class NormalizedDistance:
         self._inv_start = 1.0 / self.start_distance
 
     def raw(self, placement: pin.SE3) -> float:
-        """Un-normalised distance ``D`` [m] of a palm placement to the grasp."""
+        """Un-normalised distance ``D`` [m] of a palm placement to the grasp.
+
+        Args:
+            placement: The palm frame's placement (world frame).
+
+        Returns:
+            The distance [m] (plus the weighted rotation [m] with ``distance = "weighted"``).
+        """
         return palm_distance(placement, self._goal, self._goal_rot_t, self._rotation_weight)
 
     def __call__(self, placement: pin.SE3) -> float:

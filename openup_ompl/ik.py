@@ -114,11 +114,25 @@ class IKSolver:
         self.iterations = 0
 
     def random_arm(self, rng: np.random.Generator) -> np.ndarray:
-        """A restart point drawn uniformly inside the arm joint limits."""
+        """A restart point drawn uniformly inside the arm joint limits.
+
+        Args:
+            rng: The run's random generator.
+
+        Returns:
+            Arm joint values [rad or m], ``(dof,)``.
+        """
         return rng.uniform(self._lower, self._upper)
 
     def error(self, arm: np.ndarray) -> tuple[float, float]:
-        """Palm position error [m] and rotation error [rad] at an arm configuration."""
+        """Palm position error [m] and rotation error [rad] at an arm configuration.
+
+        Args:
+            arm: Arm joint values [rad or m].
+
+        Returns:
+            ``(position error [m], rotation error [rad])`` of the palm to :attr:`target`.
+        """
         self._q[self.robot.arm_idx] = arm
         placement = self.robot.palm_placement(self._data, self._q)
         err = pin.log6(placement.actInv(self.target)).vector
@@ -126,7 +140,16 @@ class IKSolver:
 
     def refine(self, arm: np.ndarray, target: pin.SE3 | None = None) -> np.ndarray | None:
         """Run damped least squares from ``arm`` towards ``target`` (default: the
-        solver's :attr:`target`); the solution, or ``None`` if it stalls."""
+        solver's :attr:`target`); the solution, or ``None`` if it stalls.
+
+        Args:
+            arm: Arm joint values to start from [rad or m].
+            target: The palm pose to reach (world frame); default :attr:`target`.
+
+        Returns:
+            The converged arm joint values [rad or m], within the joint limits, or ``None``
+            if the error stalls or the iterations run out.
+        """
         target = self.target if target is None else target
         options = self.options
         model, data, q = self._model, self._data, self._q
@@ -164,7 +187,15 @@ class IKSolver:
         """The arm configuration that moves the palm by ``offset`` [m, in the palm frame]
         with its orientation held: :meth:`refine` from ``arm`` towards the moved palm
         pose, or ``None`` where it stalls (for steps of centimetres it converges in a
-        few iterations)."""
+        few iterations).
+
+        Args:
+            arm: Arm joint values to start from [rad or m].
+            offset: The palm's displacement [m], in the palm frame, ``(3,)``.
+
+        Returns:
+            The arm joint values [rad or m] of the moved palm, or ``None``.
+        """
         self._q[self.robot.arm_idx] = arm
         placement = self.robot.palm_placement(self._data, self._q)
         return self.refine(arm, placement * pin.SE3(np.eye(3), np.asarray(offset, dtype=float)))
@@ -172,7 +203,16 @@ class IKSolver:
     def solve(
         self, rng: np.random.Generator, seed_arm: np.ndarray | None = None
     ) -> np.ndarray | None:
-        """Up to ``max_restarts`` refinements (the first from ``seed_arm`` if given)."""
+        """Up to ``max_restarts`` refinements (the first from ``seed_arm`` if given).
+
+        Args:
+            rng: The run's random generator (restart points).
+            seed_arm: Arm joint values [rad or m] to start the first refinement from.
+
+        Returns:
+            The first converged arm joint values [rad or m], or ``None`` if every restart
+            stalled.
+        """
         for attempt in range(self.options.max_restarts):
             start = seed_arm if attempt == 0 and seed_arm is not None else self.random_arm(rng)
             solution = self.refine(start)

@@ -122,7 +122,15 @@ def _thickness(points: np.ndarray, hull: ConvexHull) -> float:
 
 def convex_geometry(points: np.ndarray, padding: float = 0.0) -> coal.ConvexBase:
     """A Coal ``Convex`` of hull vertices [m], grown by ``padding`` [m] on every side (its
-    swept-sphere radius: exactly the Minkowski sum with a ball)."""
+    swept-sphere radius: exactly the Minkowski sum with a ball).
+
+    Args:
+        points: Hull vertices ``(n, 3)`` [m] (:func:`hull_points`).
+        padding: Growth [m] on every side.
+
+    Returns:
+        The Coal convex shape.
+    """
     vector = coal.StdVec_Vec3s()
     vector.extend(list(np.asarray(points, dtype=float)))
     geometry = coal.Convex.convexHull(vector, False, None)
@@ -132,7 +140,17 @@ def convex_geometry(points: np.ndarray, padding: float = 0.0) -> coal.ConvexBase
 
 
 def write_obj(path: Path, vertices: np.ndarray, triangles: np.ndarray, comment: str) -> Path:
-    """Write a Wavefront OBJ file (vertices [m], 1-based triangle indices)."""
+    """Write a Wavefront OBJ file (vertices [m], 1-based triangle indices).
+
+    Args:
+        path: The file to write.
+        vertices: ``(n, 3)`` vertex positions [m].
+        triangles: ``(m, 3)`` 0-based vertex indices.
+        comment: A first line, written as an OBJ comment.
+
+    Returns:
+        ``path``.
+    """
     lines = [f"# {comment}"]
     lines += [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in vertices]
     lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in triangles]
@@ -187,6 +205,9 @@ SHIPPED_MESHES = {
 
 def write_shipped_meshes(folder: Path) -> list[Path]:
     """Generate the shipped meshes (:data:`SHIPPED_MESHES`) as OBJ files in ``folder``.
+
+    Args:
+        folder: Where to write them (created if missing).
 
     Returns:
         The written files.

@@ -64,7 +64,15 @@ def _geometry_reach(robot: Robot, joint_id: int, geometry: pin.GeometryObject) -
 
 
 def joint_reach(robot: Robot, joint_id: int) -> float:
-    """Upper bound [m] on the distance from a joint's origin to any robot point it moves."""
+    """Upper bound [m] on the distance from a joint's origin to any robot point it moves.
+
+    Args:
+        robot: The loaded robot.
+        joint_id: A Pinocchio joint index.
+
+    Returns:
+        The bound [m].
+    """
     subtree = set(robot.model.subtrees[joint_id])
     return max(
         (
@@ -77,7 +85,15 @@ def joint_reach(robot: Robot, joint_id: int) -> float:
 
 
 def joint_weight(robot: Robot, joint_id: int) -> float:
-    """Displacement [m] of the farthest moved point per unit of this joint's motion."""
+    """Displacement [m] of the farthest moved point per unit of this joint's motion.
+
+    Args:
+        robot: The loaded robot.
+        joint_id: A Pinocchio joint index.
+
+    Returns:
+        The weight [m per rad, or m per m for a prismatic joint].
+    """
     return 1.0 if is_prismatic(robot.model.joints[joint_id]) else joint_reach(robot, joint_id)
 
 
@@ -89,6 +105,9 @@ def distance_rates(robot: Robot, law: HandLaw, start_distance: float) -> np.ndar
         robot: The robot.
         law: The hand law (its distance kind and rotation weight).
         start_distance: Algorithm 1's denominator [m].
+
+    Returns:
+        ``(dof,)`` rates [1 per rad or per m], arm joint order.
     """
     return (palm_reach(robot) + _rotation_rates(robot, law)) / start_distance
 
@@ -105,7 +124,14 @@ def _rotation_rates(robot: Robot, law: HandLaw) -> np.ndarray:
 def palm_reach(robot: Robot) -> np.ndarray:
     """Per arm joint, an upper bound [m] on the distance from its origin to the palm frame's
     origin over every configuration (0 for a joint that does not move the palm): how far
-    the palm moves per radian of that joint."""
+    the palm moves per radian of that joint.
+
+    Args:
+        robot: The loaded robot.
+
+    Returns:
+        ``(dof,)`` bounds [m], arm joint order.
+    """
     model = robot.model
     arm_ids = [model.getJointId(name) for name in robot.spec.arm_joints]
     palm = model.frames[robot.palm_frame_id]
@@ -132,6 +158,10 @@ def local_rate_terms(robot: Robot, law: HandLaw) -> tuple[np.ndarray, np.ndarray
     |b - a|``. Then ``p'(t)`` differs from the mean velocity ``p(b) - p(a)`` by at most
     ``K / 2`` (``|p'(t) - p'(s)| <= K |t - s|``, averaged over ``s`` in [0, 1]): the
     palm's speed is at most ``|p(b) - p(a)| + K / 2`` all along.
+
+    Args:
+        robot: The loaded robot.
+        law: The hand law (its distance kind and rotation weight).
 
     Returns:
         ``second`` (arm joints x arm joints) [m per joint unit squared] and the rotation
@@ -162,7 +192,14 @@ def _second_derivatives(model: pin.Model, arm_ids: list[int], reach: np.ndarray)
 
 def arm_weights(robot: Robot) -> np.ndarray:
     """Per-arm-joint weights [m per joint unit] of the bound with the hand still: enough
-    wherever the law's hand does not move (a fixed hand, or ``d`` above ``mga``)."""
+    wherever the law's hand does not move (a fixed hand, or ``d`` above ``mga``).
+
+    Args:
+        robot: The loaded robot.
+
+    Returns:
+        ``(dof,)`` weights [m per rad or per m], arm joint order.
+    """
     model = robot.model
     return np.array([joint_weight(robot, model.getJointId(n)) for n in robot.spec.arm_joints])
 
@@ -174,6 +211,14 @@ def hand_rate(robot: Robot, hand_ids: list[int], law: HandLaw) -> float:
     A point moves only with the hand joints on its own chain, so the bound is the largest
     sum of ``|slope_j| * W_j`` along one chain (one finger), not the sum over the whole
     hand: each finger of a multi-finger hand is a separate chain from the palm.
+
+    Args:
+        robot: The loaded robot.
+        hand_ids: Pinocchio joint indices of the hand joints.
+        law: The hand law (its slopes in ``d``).
+
+    Returns:
+        The bound [m per unit of ``d``].
     """
     model = robot.model
     terms = dict(
@@ -227,6 +272,12 @@ def body_bounds(robot: Robot) -> BodyBounds | None:
     radius for geometry on ``A`` itself; for geometry under further (finger) joints, ``c``
     the origin of the first of them and ``e`` the chain length to the geometry's joint
     plus the geometry's extent, whatever the fingers do.
+
+    Args:
+        robot: The loaded robot.
+
+    Returns:
+        The bodies' spheres and second-derivative constants, or ``None``.
     """
     model = robot.model
     arm_ids = [model.getJointId(name) for name in robot.spec.arm_joints]
@@ -286,7 +337,15 @@ def body_bounds(robot: Robot) -> BodyBounds | None:
 
 def body_curvature(bounds: BodyBounds, abs_delta: np.ndarray) -> np.ndarray:
     """Per body, the bound ``K`` of ``|x''(t)|`` for its points along a straight motion with
-    ``abs_delta = |b - a|`` (see :func:`local_reach`), ``(m,)`` [m]."""
+    ``abs_delta = |b - a|`` (see :func:`local_reach`), ``(m,)`` [m].
+
+    Args:
+        bounds: The robot's :func:`body_bounds`.
+        abs_delta: ``|b - a|`` per arm joint [rad].
+
+    Returns:
+        ``(m,)`` bounds ``K`` [m], one per body.
+    """
     return bounds.second @ np.outer(abs_delta, abs_delta).ravel()
 
 
@@ -308,6 +367,15 @@ def local_reach(
     largest over the bodies bounds every point. A short coordinated motion (a palm
     retreat) moves the robot far less than the global weights' sum over the joints says;
     for long motions the global bound is the smaller and the caller keeps it.
+
+    Args:
+        bounds: The robot's :func:`body_bounds`.
+        frames_a: The arm joints' placements at ``a``, ``(n, 4, 4)``.
+        frames_b: The same at ``b``.
+        curvature: :func:`body_curvature` of the motion, ``(m,)`` [m].
+
+    Returns:
+        The bound [m per unit of ``t``].
     """
     index = bounds.arm_index
     frames_a, frames_b = frames_a[index], frames_b[index]
@@ -335,6 +403,13 @@ def self_pair_factors(robot: Robot, geometry_model: pin.GeometryModel) -> np.nda
     share below half its global bound, so ``2 kappa`` (at least 1 with fingers between)
     suffices too. Neighbouring links of one wrist, a few centimetres apart in every
     configuration, then keep a fraction of the padding instead of twice it.
+
+    Args:
+        robot: The loaded robot.
+        geometry_model: A world's geometry model and its collision pairs.
+
+    Returns:
+        ``(pairs,)`` factors in [0, 2], collision pair order.
     """
     model = robot.model
     arm = [model.getJointId(name) for name in robot.spec.arm_joints]

@@ -1,4 +1,4 @@
-"""Robot model: a robot file (README, Files: Robot) loaded into Pinocchio and Coal.
+"""Robot model: a robot file (see the file formats) loaded into Pinocchio and Coal.
 
 The arm joints are OMPL's state space; the hand joints follow the hand law. Both map
 into Pinocchio's configuration vector ``q`` through :attr:`Robot.arm_idx` and
@@ -202,6 +202,11 @@ class Robot:
         :data:`~openup_ompl.hand_law.REFERENCE_TOLERANCE`), and, if ``followers``, the mimic
         followers they set.
 
+        Args:
+            driven: Driven hand joint values [rad or m].
+            what: How to name them in an error (e.g. ``"hand.c"``).
+            followers: Also check the mimic followers they set.
+
         Raises:
             ConfigError: Naming ``what``, the driven values and every joint outside its
                 limits (a follower with its mimic relation).
@@ -233,7 +238,14 @@ class Robot:
 
     def expand_hand(self, driven: np.ndarray) -> np.ndarray:
         """Driven hand values (last axis, ``spec.hand_joints`` order) with the followers
-        appended (:attr:`hand_joints` order): ``q_f = multiplier * q_leader + offset``."""
+        appended (:attr:`hand_joints` order): ``q_f = multiplier * q_leader + offset``.
+
+        Args:
+            driven: Driven hand joint values [rad or m], last axis ``spec.hand_joints``.
+
+        Returns:
+            The values of every hand joint [rad or m], followers last.
+        """
         driven = np.asarray(driven, dtype=float)
         if driven.ndim == 0 or driven.shape[-1] != self.n_driven:
             raise ConfigError(
@@ -259,6 +271,7 @@ class Robot:
 
     @property
     def name(self) -> str:
+        """The robot's name (the robot file's ``name``)."""
         return self.spec.name
 
     @property
@@ -282,13 +295,24 @@ class Robot:
         return [name for _, name in joints]
 
     def neutral(self) -> np.ndarray:
-        """Pinocchio's neutral configuration (joints outside arm and hand stay there)."""
+        """Pinocchio's neutral configuration (joints outside arm and hand stay there).
+
+        Returns:
+            The neutral ``q`` [rad or m], ``(nq,)``.
+        """
         return pin.neutral(self.model)
 
     def full_q(self, arm: np.ndarray, hand: np.ndarray) -> np.ndarray:
         """The full configuration ``q`` from arm joint values and hand joint values: the
         driven ones (:attr:`n_driven`, the followers computed) or all of
         :attr:`hand_joints` (followers included, as given).
+
+        Args:
+            arm: Arm joint values [rad or m].
+            hand: Driven or all hand joint values [rad or m].
+
+        Returns:
+            The full configuration ``(nq,)`` in Pinocchio's order.
 
         Raises:
             ConfigError: ``arm`` or ``hand`` of another length.
@@ -323,6 +347,14 @@ class Robot:
         expanded to the mimic followers: Algorithm 3 is an affine combination of them with
         weights summing to one, so a follower set by the law stays ``multiplier * leader +
         offset`` (up to clipping on each joint's own limits).
+
+        Args:
+            table: Field name -> value overriding the robot's ``[hand]``.
+            where: Prefix of error locations.
+            **overrides: Further fields (e.g. ``u=0.3``).
+
+        Returns:
+            The law, with ``c``, ``b``, ``w`` over every hand joint.
 
         Raises:
             ConfigError: An unknown field or a bad value, located at ``where.key``.
@@ -364,6 +396,13 @@ class Robot:
     def check_arm(self, arm: np.ndarray, what: str) -> np.ndarray:
         """Validate an arm configuration: right length, finite, inside the joint limits.
 
+        Args:
+            arm: Arm joint values [rad or m].
+            what: How to name them in an error.
+
+        Returns:
+            ``arm`` as a float array ``(dof,)``.
+
         Raises:
             ConfigError: Naming ``what`` (and the joint beyond its limits).
         """
@@ -384,7 +423,15 @@ class Robot:
         return arm
 
     def palm_placement(self, data: pin.Data, q: np.ndarray) -> pin.SE3:
-        """World placement of the palm frame at ``q`` (writes into ``data``)."""
+        """World placement of the palm frame at ``q`` (writes into ``data``).
+
+        Args:
+            data: Pinocchio data of this robot's model (scratch).
+            q: Full configuration [rad or m].
+
+        Returns:
+            The palm frame's placement (world frame, metres).
+        """
         pin.forwardKinematics(self.model, data, q)
         return pin.updateFramePlacement(self.model, data, self.palm_frame_id)
 
@@ -398,6 +445,12 @@ def load_robot(name_or_path: str | Path = "panda") -> Robot:
     and the hand's SRDF pairs, the pair (the arm link holding ``mount.frame``, the
     hand's root link) and ``mount.disable_collisions``. A merged URDF with the same
     kinematics is written to :func:`cache_dir` for plan files.
+
+    Args:
+        name_or_path: A shipped robot's name or a robot TOML's path.
+
+    Returns:
+        The loaded :class:`Robot` (Pinocchio model and geometry, spec).
 
     Raises:
         RobotNotFound: No robot of that name and no such file.

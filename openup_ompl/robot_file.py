@@ -1,4 +1,4 @@
-"""Robot files (README, Files: Robot): the TOML format read into a :class:`RobotSpec`.
+"""Robot files (see the file formats): the TOML format read into a :class:`RobotSpec`.
 
 Only reading and checking: loading the URDF is :mod:`openup_ompl.urdf`, the loaded model
 :mod:`openup_ompl.robot`.
@@ -279,7 +279,14 @@ class RobotSpec:
 
     @classmethod
     def from_file(cls, path: Path) -> RobotSpec:
-        """Read and validate a robot TOML file (README, Files: Robot)."""
+        """Read and validate a robot TOML file (see the file formats).
+
+        Args:
+            path: The robot TOML file.
+
+        Returns:
+            The validated spec (not yet loaded into Pinocchio).
+        """
         path = resolved(path, "robot file")
         raw = _toml.read_toml(path, "robot file")
         where = path.name
@@ -372,12 +379,24 @@ def _closing_speed(raw: Any, where: str, n: int) -> np.ndarray:
 
 
 def available_robots() -> dict[str, Path]:
-    """Shipped robot files by name."""
+    """Shipped robot files by name.
+
+    Returns:
+        Robot name -> robot TOML path, for every shipped robot.
+    """
     return {path.stem: path for path in sorted(data_dir("robots").glob("*.toml"))}
 
 
 def find_robot_file(name_or_path: str | Path, relative_to: Path | None = None) -> Path:
-    """A shipped robot name (``"panda"``) or a path to a robot TOML."""
+    """A shipped robot name (``"panda"``) or a path to a robot TOML.
+
+    Args:
+        name_or_path: A shipped robot's name or a path to a robot TOML.
+        relative_to: The directory a relative path is read from (a scene file's).
+
+    Returns:
+        The robot TOML's path.
+    """
     text = str(name_or_path)
     robots = available_robots()
     if text in robots:

@@ -43,7 +43,15 @@ def _grouped(rows: Sequence[dict[str, Any]], by_direction: bool) -> dict[Any, li
 
 def markdown_tables(rows: Sequence[dict[str, Any]]) -> str:
     """Success per ``u`` and error magnitude (directions and yaws pooled), then per
-    direction; cells are ``successes/trials``."""
+    direction; cells are ``successes/trials``.
+
+    Args:
+        rows: The CSV rows of the sweep (``u``, ``dx``, ``dy``, ``yaw``, ``trials``,
+            ``successes``, ...).
+
+    Returns:
+        The Markdown text of ``robustness.md``.
+    """
     us = sorted({row["u"] for row in rows})
     magnitudes = sorted({_magnitude(row) for row in rows})
     head = "| u | " + " | ".join(f"{m * 100:g} cm" for m in magnitudes) + " |"
@@ -85,7 +93,16 @@ def write_csv(
     rows: Sequence[dict[str, Any]], path: Path, columns: Sequence[str] | None = None
 ) -> Path:
     """``robustness.csv``: ``columns`` (default: the first row's keys, in order), one row
-    per cell, ``success_rate`` to four decimals and a physics sweep's ``moved_mm`` to two."""
+    per cell, ``success_rate`` to four decimals and a physics sweep's ``moved_mm`` to two.
+
+    Args:
+        rows: The rows to write.
+        path: The CSV file.
+        columns: The columns, in order.
+
+    Returns:
+        ``path``.
+    """
     columns = list(columns if columns is not None else rows[0])
     with path.open("w", newline="") as handle:
         writer = csv.DictWriter(handle, fieldnames=columns)
@@ -99,7 +116,16 @@ def write_csv(
 
 def plot_robustness(rows: Sequence[dict[str, Any]], path: Path, title: str = "") -> Path:
     """Success rate against the error magnitude, one line per ``u``: all directions
-    pooled, then one panel per direction."""
+    pooled, then one panel per direction.
+
+    Args:
+        rows: The CSV rows of the sweep.
+        path: The PNG file to write.
+        title: Figure title.
+
+    Returns:
+        ``path``.
+    """
 
     plt = _pyplot()
     us = sorted({row["u"] for row in rows})

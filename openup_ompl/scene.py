@@ -1,4 +1,4 @@
-"""Scene files (README, Files: Scene): robot, start, grasp pose, hand law, object and
+"""Scene files (see the file formats): robot, start, grasp pose, hand law, object and
 obstacles. Every table rejects keys it does not know, naming the nearest valid one."""
 
 from __future__ import annotations
@@ -219,7 +219,14 @@ class Shape:
 
     def at(self, pose: np.ndarray) -> Shape:
         """The same shape at ``pose`` ``[x, y, z, qx, qy, qz, qw]`` (its :attr:`raw` table
-        moved along): the object displaced, or where perception estimates it."""
+        moved along): the object displaced, or where perception estimates it.
+
+        Args:
+            pose: ``[x, y, z, qx, qy, qz, qw]`` [m], world frame.
+
+        Returns:
+            A new shape, equal but for its pose.
+        """
         pose = np.asarray(pose, dtype=float)
         raw = {**self.raw, "pose": pose.tolist()}
         return dataclasses.replace(self, pose=pose, raw=raw)
@@ -228,7 +235,11 @@ class Shape:
         """The shape as a scene file's table, written from its fields (JSON and TOML
         types): what a plan file holds, read back by :meth:`from_table` into an equal
         shape. Not :attr:`raw`, which a shape changed in code (``dataclasses.replace``)
-        or built there does not update or have."""
+        or built there does not update or have.
+
+        Returns:
+            Key -> value (lists for arrays, the mesh file as a string).
+        """
         table: dict[str, Any] = {"name": self.name, "shape": self.shape}
         table["pose"] = np.asarray(self.pose, dtype=float).tolist()
         for key in (*SHAPE_KEYS[self.shape], "mass", "friction"):
@@ -250,6 +261,12 @@ class Shape:
         """The Coal collision geometry of this shape, centred at its origin, grown by
         ``padding`` [m] on every side (a superset of the shape's Minkowski sum with a
         ball of that radius).
+
+        Args:
+            padding: Growth on every side [m], finite and ``>= 0``.
+
+        Returns:
+            The Coal geometry (a box, cylinder, sphere or convex hull).
 
         Raises:
             ConfigError: ``padding`` negative or not finite (a shrunk shape would hide
@@ -340,7 +357,11 @@ class Problem:
         """The files the problem was read from: its scene file (if any), the robot file,
         and the URDF and SRDF files it names (its mounted hand's too). Not the meshes a
         URDF references: finding them means resolving its package URIs, and the shipped
-        robots' come from an installed package (example-robot-data) or are primitives."""
+        robots' come from an installed package (example-robot-data) or are primitives.
+
+        Returns:
+            Their paths.
+        """
         spec = self.robot.spec
         files = [self.path, spec.path, spec.urdf, spec.srdf]
         if spec.mount is not None:
@@ -359,20 +380,33 @@ class Problem:
 
 
 def default_scene_path() -> Path:
-    """The Panda reaching a can past a wall: the scene of the README's examples."""
+    """The Panda reaching a can past a wall: the scene of the documentation's examples.
+
+    Returns:
+        The path of the shipped ``panda_can.toml``.
+    """
     return data_dir("scenes") / "panda_can.toml"
 
 
 def demo_scene_path() -> Path:
     """The scene ``openup-ompl demo`` plans: the paper's robot (an LWA3-class arm with an
     SDH-class hand) taking a can from the side, its fingers opening by centimetres (the
-    Panda's open by millimetres)."""
+    Panda's open by millimetres).
+
+    Returns:
+        The path of the shipped ``lwa3_sdh_can.toml``.
+    """
     return data_dir("scenes") / "lwa3_sdh_can.toml"
 
 
 def check_unique_names(obstacles: Sequence[Shape], obj: Shape | None, where: str) -> None:
     """Refuse a scene where two shapes (the object included) share a name: collision pairs,
     physics bodies and contact reports are named after them.
+
+    Args:
+        obstacles: The scene's obstacles.
+        obj: The object, if any.
+        where: The scene file, for the message.
 
     Raises:
         ConfigError: Naming ``where`` and the first repeated name.
@@ -393,6 +427,11 @@ def check_object_clear(obstacles: Sequence[Shape], obj: Shape | None, where: str
     overlap an obstacle otherwise: a resting object touches its table, and a perceived
     estimate (``perceived.toml``) tilted by a degree dips a corner of its base up to a
     centimetre into it, which planning must accept.
+
+    Args:
+        obstacles: The scene's obstacles.
+        obj: The object, if any.
+        where: The scene file, for the message.
 
     Raises:
         ConfigError: Naming ``where``, the object's pose, the obstacle and how deep the
@@ -416,12 +455,15 @@ def check_object_clear(obstacles: Sequence[Shape], obj: Shape | None, where: str
 
 
 def load_scene(path: str | Path, robot: Robot | None = None) -> Problem:
-    """Load a scene TOML (README, Files: Scene) into a :class:`Problem`.
+    """Load a scene TOML (see the file formats) into a :class:`Problem`.
 
     Args:
         path: The scene file.
         robot: An already loaded robot to use instead of loading the scene's ``robot``
             again (it must be the same robot file).
+
+    Returns:
+        The problem: robot, start, grasp pose, law, obstacles and object.
 
     Raises:
         ConfigError: A missing key or bad value, named with its file and key; an object

@@ -44,7 +44,11 @@ _PRIMITIVE_SIZES = {
 
 def cache_dir() -> Path:
     """Where the loader writes merged URDFs: ``$OPENUP_OMPL_CACHE``, else
-    ``$XDG_CACHE_HOME/openup-ompl``, else ``~/.cache/openup-ompl``."""
+    ``$XDG_CACHE_HOME/openup-ompl``, else ``~/.cache/openup-ompl``.
+
+    Returns:
+        The directory (not created here).
+    """
     if os.environ.get("OPENUP_OMPL_CACHE"):
         return Path(os.environ["OPENUP_OMPL_CACHE"]).expanduser()
     root = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
@@ -63,7 +67,16 @@ def _write_cached(text: str, stem: str, suffix: str) -> Path:
 def urdf_tree(path: Path, where: str, kind: str = "URDF") -> ET.Element:
     """The root ``<robot>`` element of a URDF or SRDF (``kind``), parsed here first so
     that a file that is not XML is one :class:`ConfigError` instead of urdfdom's C++
-    errors on stderr."""
+    errors on stderr.
+
+    Args:
+        path: The file.
+        where: How to name it in an error.
+        kind: ``"URDF"`` or ``"SRDF"``, for the message.
+
+    Returns:
+        The parsed root element.
+    """
     try:
         root = ET.parse(path).getroot()
     except (OSError, ET.ParseError) as error:
@@ -133,7 +146,14 @@ def _number(text: str) -> float:
 
 
 def urdf_mimic(root: ET.Element) -> tuple[MimicSpec, ...]:
-    """The ``<mimic>`` tags of a URDF, as follower specs."""
+    """The ``<mimic>`` tags of a URDF, as follower specs.
+
+    Args:
+        root: A URDF's root element.
+
+    Returns:
+        One follower spec per ``<mimic>`` joint (leader, multiplier, offset [rad or m]).
+    """
     specs = []
     for joint in root.iter("joint"):
         tag = joint.find("mimic")
@@ -165,7 +185,13 @@ def _resolve_chains(mimic: tuple[MimicSpec, ...], driven: tuple[str, ...]) -> tu
 
 
 def absolute_meshes(root: ET.Element, urdf: Path, package_dirs: list[str]) -> None:
-    """Rewrite ``package://`` and relative mesh file names as absolute paths."""
+    """Rewrite ``package://`` and relative mesh file names as absolute paths.
+
+    Args:
+        root: A URDF's root element, changed in place.
+        urdf: The URDF file (for relative names).
+        package_dirs: Directories ``package://`` names are looked up in.
+    """
     for mesh in root.iter("mesh"):
         name = mesh.get("filename", "")
         if name.startswith("package://"):
@@ -297,6 +323,13 @@ def _build(
 def urdf_model(urdf: str | Path, where: str) -> pin.Model:
     """Pinocchio's kinematic model of the URDF file ``urdf``.
 
+    Args:
+        urdf: The URDF file.
+        where: How to name it in an error.
+
+    Returns:
+        The model.
+
     Raises:
         ConfigError: Pinocchio cannot load it, with urdfdom's reasons (named at ``where``).
     """
@@ -307,7 +340,16 @@ def parsed_by_pinocchio(urdf: str | Path, where: str, build: Callable[[], T]) ->
     """``build()``, a Pinocchio parse of the URDF file ``urdf``, with urdfdom's lines kept
     off the terminal: a file urdfdom refuses is one :class:`ConfigError` (named at
     ``where``) that carries its reasons ("Joint [j] ... does not specify limits"), without
-    their source-line trailers; a loaded file's warnings still reach stderr."""
+    their source-line trailers; a loaded file's warnings still reach stderr.
+
+    Args:
+        urdf: The URDF file being parsed.
+        where: How to name it in an error.
+        build: The parse to run.
+
+    Returns:
+        What ``build`` returns.
+    """
     try:
         with _native_stderr() as printed:
             result = build()
@@ -383,6 +425,12 @@ def remove_srdf_pairs(
     model: pin.Model, collision: pin.GeometryModel, srdf: Path, where: str
 ) -> None:
     """Leave out of ``collision`` the pairs the SRDF disables.
+
+    Args:
+        model: The robot's Pinocchio model.
+        collision: Its collision geometry model, changed in place.
+        srdf: The SRDF file.
+        where: How to name it in an error.
 
     Raises:
         ConfigError: The file is not an SRDF pinocchio can read (named at ``where``),

@@ -50,6 +50,11 @@ class Recheck:
 
 
 def _shape_geometry(shape: dict[str, Any]) -> coal.CollisionGeometry:
+    if shape["shape"] == "mesh":  # the convex hull of the file's vertices, by Coal itself
+        scale = np.full(3, float(shape.get("scale", 1.0)))
+        mesh = coal.MeshLoader().load(shape["file"], scale)
+        mesh.buildConvexRepresentation(True)
+        return mesh.convex
     if shape["shape"] == "box":
         return coal.Box(*shape["size"])
     if shape["shape"] == "sphere":

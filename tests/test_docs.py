@@ -1,6 +1,8 @@
-"""The READMEs' links, pictures and quoted commands match the repository and the code:
-every ``#anchor`` names a heading, every relative path exists, and every option a quoted
-``openup-ompl`` command or benchmark script passes is one that command accepts."""
+"""The READMEs' and the documentation pages' links, pictures and quoted commands match the
+repository and the code: every ``#anchor`` names a heading, every relative path exists,
+every option a quoted ``openup-ompl`` command or benchmark script passes is one that
+command accepts, and the Python the README and the pipeline page show runs as written.
+(The Sphinx build, ``-n -W``, checks the pages' own cross-references.)"""
 
 from __future__ import annotations
 
@@ -17,6 +19,8 @@ from openup_ompl.__main__ import build_parser
 
 ROOT = Path(__file__).resolve().parent.parent
 READMES = [ROOT / "README.md", ROOT / "benchmarks" / "README.md"]
+PAGES = sorted(path for path in (ROOT / "docs").rglob("*.md") if "_build" not in path.parts)
+QUOTING = READMES + PAGES
 FLAG = re.compile(r"(?<![\w-])--[a-z][a-z0-9-]*")
 
 
@@ -60,7 +64,6 @@ def test_anchors_name_headings(readme: Path) -> None:
     text = readme.read_text()
     headings = _headings(text)
     anchors = [link[1:] for link in _links(text) if link.startswith("#")]
-    assert anchors or readme != READMES[0], "the README links no heading"
     missing = [anchor for anchor in anchors if anchor not in headings]
     assert not missing, f"{readme.name}: anchors without a heading: {missing}"
 
@@ -79,8 +82,8 @@ def test_relative_links_exist(readme: Path) -> None:
 
 
 def test_quoted_cli_options_exist() -> None:
-    """Each ``openup-ompl COMMAND ... --option`` quoted in a README names a command and
-    options of that command (the synopses' optional ``[--option ...]`` included)."""
+    """Each ``openup-ompl COMMAND ... --option`` quoted in a README or a documentation page
+    names a command and options of that command (synopses' ``[--option ...]`` included)."""
     parser = build_parser()
     commands = next(
         action for action in parser._actions if isinstance(action, argparse._SubParsersAction)
@@ -90,7 +93,7 @@ def test_quoted_cli_options_exist() -> None:
         for name, sub in commands.items()
     }
     checked, wrong = 0, []
-    for readme in READMES:
+    for readme in QUOTING:
         for command, rest in _quoted(readme.read_text(), "openup-ompl "):
             if command not in options:
                 wrong.append(f"{readme.name}: openup-ompl {command}")
@@ -104,12 +107,12 @@ def test_quoted_cli_options_exist() -> None:
 
 
 def test_quoted_benchmark_options_exist() -> None:
-    """Each benchmark script a README quotes (``benchmarks/SCRIPT.py``) exists, and each
-    ``SCRIPT.py ... --option`` quoted is an option its ``--help`` lists."""
+    """Each benchmark script a README or a page quotes (``benchmarks/SCRIPT.py``) exists, and
+    each ``SCRIPT.py ... --option`` quoted is an option its ``--help`` lists."""
     scripts = {path.name for path in (ROOT / "benchmarks").glob("*.py")}
     quoted: dict[str, set[str]] = {}
     wrong = []
-    for readme in READMES:
+    for readme in QUOTING:
         text = _flowing(readme.read_text())
         wrong += [
             f"{readme.name}: no benchmarks/{name}"
@@ -143,26 +146,43 @@ def _python_blocks(text: str) -> list[str]:
     return re.findall(r"```python\n(.*?)```", text, flags=re.S)
 
 
-@pytest.mark.slow  # plans, closes the hand, runs a 20-plan sweep
-def test_readme_python_api_runs_as_written(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """The README's Python API blocks up to the physics one run in order, as a user would
-    paste them into one session at the repository root, and the values their comments
-    announce (``# True here``, ``# False: ...``) are what they return. (The physics block
-    runs a default physics sweep, minutes long: tests/test_physics.py covers its calls.)"""
-    blocks = _python_blocks(READMES[0].read_text())
-    api = [block for block in blocks if "physics" not in block]
-    assert len(api) >= 3, len(api)
+def test_readme_reads_in_five_minutes() -> None:
+    """The README stays short (at most 250 lines): the rest belongs to the documentation."""
+    assert len((ROOT / "README.md").read_text().splitlines()) <= 250
+
+
+def test_docs_hold_no_commit_hashes() -> None:
+    """No README or documentation page cites a commit (history goes to CHANGELOG.md)."""
+    commit = re.compile(r"\b(?=[0-9a-f]*[a-f])(?=[0-9a-f]*[0-9])[0-9a-f]{7,40}\b")
+    cited = [
+        f"{path.relative_to(ROOT)}: {match}"
+        for path in [*QUOTING, ROOT / "CHANGELOG.md"]
+        for match in commit.findall(re.sub(r"```.*?```", "", path.read_text(), flags=re.S))
+    ]
+    assert not cited, cited
+
+
+@pytest.mark.slow  # plans, closes the hand, runs a 20-plan sweep and one rollout
+def test_python_examples_run_as_written(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The README's Python example, then the pipeline page's blocks, run in order as a user
+    would paste them into one session at the repository root, and the values their
+    comments announce (``# True here``, ``# False: ...``) are what they return. (The
+    ``ot.Benchmark`` block is examples/ompl_benchmark.py's, run by tests/test_examples.py.)"""
+    readme = _python_blocks(READMES[0].read_text())
+    page = _python_blocks((ROOT / "docs" / "pipeline.md").read_text())
+    blocks = readme + [block for block in page if "ot.Benchmark" not in block]
+    assert len(readme) == 1 and len(blocks) >= 6, len(blocks)
     (tmp_path / "scenes").symlink_to(ROOT / "scenes")
     monkeypatch.chdir(tmp_path)
     namespace: dict[str, object] = {}
     announced = 0
-    for block in api:
-        exec(compile(block, "README.md", "exec"), namespace)  # noqa: S102 - the README's code
+    for block in blocks:
+        exec(compile(block, "docs", "exec"), namespace)  # noqa: S102 - the docs' code
         for line in block.splitlines():
             match = re.match(r"^(\S.*?)\s+# (True|False)\b", line)
             if match and "=" not in match.group(1).split("(")[0]:
                 announced += 1
-                value = eval(match.group(1), namespace)  # noqa: S307 - the README's code
+                value = eval(match.group(1), namespace)  # noqa: S307 - the docs' code
                 assert bool(value) is (match.group(2) == "True"), line
     assert announced >= 2
     assert (tmp_path / "plan.json").is_file()

@@ -5,6 +5,7 @@ from __future__ import annotations
 import importlib.util
 import json
 import os
+import site
 import subprocess
 import sys
 from pathlib import Path
@@ -20,6 +21,27 @@ def _run(args: list[str], cwd: Path, env: dict[str, str]) -> subprocess.Complete
     return subprocess.run(args, cwd=cwd, env=env, capture_output=True, text=True, timeout=900)
 
 
+def _venv_seeing_this_environment(venv: Path) -> Path:
+    """A new venv that imports what the running interpreter imports, and its python.
+
+    ``--system-site-packages`` shows the new venv its base interpreter's site-packages;
+    run from inside a venv, that base is the venv's own base Python, without the venv's
+    packages (ompl, pinocchio, ...). The running environment's site-packages are then
+    added by a ``.pth`` file, after the new venv's own (so the installed wheel wins)."""
+    subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", str(venv)], check=True)
+    python = venv / "bin" / "python"
+    if sys.prefix != sys.base_prefix:
+        purelib = subprocess.run(
+            [str(python), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+        lines = [f"import site; site.addsitedir({path!r})" for path in site.getsitepackages()]
+        (Path(purelib) / "_outer_environment.pth").write_text("\n".join(lines) + "\n")
+    return python
+
+
 @pytest.fixture(scope="module")
 def installed(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, dict[str, str]]:
     """A venv (seeing the system's dependencies) with the package pip-installed from this
@@ -28,9 +50,7 @@ def installed(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, dic
     base = tmp_path_factory.mktemp("wheel")
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     env["OPENUP_OMPL_CACHE"] = str(base / "cache")
-    venv = base / "venv"
-    subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", str(venv)], check=True)
-    python = venv / "bin" / "python"
+    python = _venv_seeing_this_environment(base / "venv")
     isolation = [] if importlib.util.find_spec("hatchling") is None else ["--no-build-isolation"]
     done = _run(
         [str(python), "-m", "pip", "install", "-q", "--no-deps", *isolation, str(ROOT)],

@@ -329,3 +329,51 @@ def test_show_refuses_what_it_cannot_draw_or_write(plan_file, tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]
     with pytest.raises(ou.ConfigError, match="afile is a file"):
         plan.save(tmp_path / "afile" / "plan.json")
+
+
+def _law(c: list[float], b: list[float], w: list[float]) -> ou.HandLaw:
+    n = len(c)
+    return ou.HandLaw(
+        np.array(c), np.array(b), np.array(w), 0.3, 0.25, np.full(n, -3.0), np.full(n, 3.0)
+    )
+
+
+def test_fig3_labels_of_close_levels_are_merged():
+    """c, b, w lines closer than 4 % of the axis share one label (``b = w`` when equal), so
+    that no two labels overlap; distant levels keep their own."""
+    import matplotlib.pyplot as plt
+
+    from openup_ompl.viz.law import _references
+
+    law = _law([0.0, 0.0, 0.0], [1.0, 0.5, 1.0], [1.0, 0.9, 1.02])
+    labels = []
+    for j in range(3):
+        fig, ax = plt.subplots()
+        ax.set_ylim(-10.0, 100.0)  # 4 % of it: 4.4 units, 0.088 joint units at scale 50
+        _references(ax, law, j, 50.0)
+        labels.append(sorted(text.get_text().strip() for text in ax.texts))
+        plt.close(fig)
+    assert labels == [["b = w", "c"], ["b", "c", "w"], ["b, w", "c"]]
+
+
+def test_fig3_gives_held_joints_no_panel():
+    """A joint the law holds (c = b = w) gets no panel of its own; if the law holds every
+    joint, every joint is drawn."""
+    from openup_ompl.viz.law import _groups, _moving
+
+    law = _law([0.2, 0.0, 0.1], [0.5, 0.0, 0.1], [0.9, 0.0, 0.4])
+    moving, held = _moving(law, _groups(np.vstack([law.c, law.b, law.w])))
+    assert moving == [[0], [2]] and held == [[1]]
+    still = _law([0.1, 0.1], [0.1, 0.1], [0.1, 0.1])
+    assert _moving(still, [[0, 1]]) == ([[0, 1]], [])
+
+
+def test_storyboard_titles_explain_d_above_one(plan_file):
+    """A frame whose d exceeds 1 says that the palm is farther than at the start."""
+    from openup_ompl.viz.storyboard import _title
+
+    scene = PlanScene.from_file(plan_file)
+    scene.distances[1] = 1.4
+    assert "farther than at the start" in _title(scene, 1)
+    scene.distances[1] = 0.6
+    assert "farther" not in _title(scene, 1)

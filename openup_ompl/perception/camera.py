@@ -146,7 +146,15 @@ class CameraOptions:
     @classmethod
     def from_table(cls, table: Mapping[str, Any], where: str = "camera") -> CameraOptions:
         """Options from a scene's ``[camera]`` table or ``--camera KEY=VALUE`` pairs (the
-        keys are the attribute names)."""
+        keys are the attribute names).
+
+        Args:
+            table: Key -> value (``width``, ``height``, ``fov``, ``distance``, ...).
+            where: Prefix of error locations.
+
+        Returns:
+            The options, checked.
+        """
         _toml.check_keys(table, {f.name for f in fields(cls)}, where)
         orbit = sorted(set(table) & set(ORBIT_KEYS))
         if "position" in table and orbit:
@@ -165,7 +173,11 @@ class CameraOptions:
         return cls(**values)
 
     def intrinsics(self) -> tuple[float, float, float, float]:
-        """``(fx, fy, cx, cy)`` [px]."""
+        """``(fx, fy, cx, cy)`` [px].
+
+        Returns:
+            The focal lengths and principal point ``(fx, fy, cx, cy)`` [px].
+        """
         fx = (
             self.fx
             if self.fx is not None
@@ -177,7 +189,14 @@ class CameraOptions:
         return float(fx), float(fy), float(cx), float(cy)
 
     def look_at(self, problem: Problem) -> tuple[np.ndarray, np.ndarray]:
-        """The camera's position and target [m] in the world frame for ``problem``."""
+        """The camera's position and target [m] in the world frame for ``problem``.
+
+        Args:
+            problem: The scene (its object, robot base and grasp).
+
+        Returns:
+            ``(position, target)``, each ``(3,)`` [m].
+        """
         if self.target is not None:
             target = np.array(self.target, dtype=float)
         elif problem.object is not None:
@@ -308,7 +327,11 @@ class DepthView:
         return np.where(self.hit, angle, np.nan)
 
     def camera_points(self) -> np.ndarray:
-        """Hit points in the camera frame [m] (NaN rows: no hit)."""
+        """Hit points in the camera frame [m] (NaN rows: no hit).
+
+        Returns:
+            ``(height * width, 3)`` points [m].
+        """
         return self.rays * self.distance[:, None]
 
 
@@ -349,7 +372,11 @@ class DepthCamera:
         self._normal = np.empty(3 * n, dtype=float)
 
     def render(self) -> DepthView:
-        """Cast every pixel's ray (MuJoCo ``mj_multiRay``, static geoms included)."""
+        """Cast every pixel's ray (MuJoCo ``mj_multiRay``, static geoms included).
+
+        Returns:
+            The view (:class:`DepthView`): per pixel the hit distance [m], geom and normal.
+        """
         import mujoco
 
         n = self.rays.shape[0]
@@ -391,7 +418,15 @@ class DepthCamera:
         part of it). ``None`` when a ray hits nothing, the rays disagree, the surface is
         not within :data:`SUPPORT_TOLERANCE` above and :data:`SUPPORT_GAP` below the
         points' lowest, or the ``view`` sees a gap under the object in most of its image
-        columns (:func:`gap_under`: held above the surface, or on a stand the rays miss)."""
+        columns (:func:`gap_under`: held above the surface, or on a stand the rays miss).
+
+        Args:
+            points: The object's measured points ``(n, 3)`` [m], world frame.
+            view: The view they came from (for the gap test); ``None`` skips it.
+
+        Returns:
+            The surface's height [m], or ``None``.
+        """
         import mujoco
 
         if view is not None and gap_under(view) > 0.5:

@@ -81,7 +81,14 @@ def perception_options(args: argparse.Namespace) -> Any:
 
 def camera_pairs(pairs: Sequence[str]) -> dict[str, Any]:
     """``KEY=VALUE`` pairs (each VALUE a TOML value, e.g. ``distance=0.9``,
-    ``position=[1, 0, 0.8]``) as a ``[camera]`` table."""
+    ``position=[1, 0, 0.8]``) as a ``[camera]`` table.
+
+    Args:
+        pairs: The ``--camera`` arguments.
+
+    Returns:
+        Key -> parsed value.
+    """
     table: dict[str, Any] = {}
     for pair in pairs:
         key, sep, value = pair.partition("=")
@@ -96,11 +103,32 @@ def camera_pairs(pairs: Sequence[str]) -> dict[str, Any]:
 
 def scene_camera(problem: Problem, pairs: Sequence[str]) -> CameraOptions:
     """The camera of a scene file's ``[camera]`` table, overridden by ``--camera``
-    ``KEY=VALUE`` pairs."""
+    ``KEY=VALUE`` pairs.
+
+    Args:
+        problem: The scene (its ``[camera]`` table).
+        pairs: The ``--camera`` arguments.
+
+    Returns:
+        The camera options, checked.
+    """
     return camera_of_scene(problem, camera_pairs(pairs))
 
 
 def perceive_command(args: argparse.Namespace) -> int:
+    """``openup-ompl perceive``: look at the scene's object, fit it, write the outputs.
+
+    Args:
+        args: The parsed command line (``scene``, ``camera``, ``noise``, ``seed``, ``out``).
+
+    Returns:
+        0 (a view perception refuses raises instead).
+
+    Raises:
+        ConfigError: A bad scene or camera option.
+        PerceptionError: The view cannot bound the object (not seen, too few points, cut
+            off, occluded, a degenerate fit).
+    """
     from openup_ompl.perception.noise import NoiseOptions
     from openup_ompl.perception.perceive import perceive, write_perception
 
@@ -140,6 +168,20 @@ def perceive_command(args: argparse.Namespace) -> int:
 
 
 def closed_loop_command(args: argparse.Namespace) -> int:
+    """``openup-ompl closed-loop``: perceive, plan and judge every view; write the CSV, the
+    trials and the figure.
+
+    Args:
+        args: The parsed command line (``scene``, ``policies``, ``camera``, ``noise``,
+            ``distance``, ``trials``, ``seed``, ``planner``, ``time``, ``execute``,
+            ``out``, ``quiet``).
+
+    Returns:
+        0, or 130 when interrupted (the views that ended are written).
+
+    Raises:
+        ConfigError: A bad scene or option.
+    """
     import json
 
     from openup_ompl.perception.closed_loop import (

@@ -54,7 +54,7 @@ __all__ = [
     "write_csv",
 ]
 
-#: The columns of the experiment's CSV (README, Perception), then diagnostics.
+#: The columns of the experiment's CSV (the closed loop results page), then diagnostics.
 CSV_COLUMNS = (
     "policy",
     "noise",
@@ -143,6 +143,13 @@ class ClosedLoopOptions:
     def cameras(self, camera: CameraOptions) -> list[CameraOptions]:
         """``camera`` at each of the swept distances.
 
+        Args:
+            camera: The camera options (an orbit, or an explicit position).
+
+        Returns:
+            One camera per distance of :attr:`distances` (the camera itself for an explicit
+            position).
+
         Raises:
             ConfigError: More than one distance for a camera at an explicit position, or
                 a bad distance.
@@ -167,7 +174,17 @@ def planar_offset(estimate: Shape, true: Shape) -> tuple[float, float, float]:
 def kinematic_judge(setup: GraspPlanningSetup, plan: Plan, truth: Problem) -> dict[str, Any]:
     """:func:`openup_ompl.robustness.execute` against the true object: its planar offset
     and yaw from the estimate (the estimate's height and tilt errors are kept: the judge
-    is planar, as the paper's experiment is)."""
+    is planar, as the paper's experiment is).
+
+    Args:
+        setup: The setup the plan was made with (at the estimate).
+        plan: The plan.
+        truth: The true scene.
+
+    Returns:
+        The trial's verdict (:func:`openup_ompl.robustness.execute`'s record: success,
+        collision, force closure, ...).
+    """
     estimate, true = setup.problem.object, truth.object
     assert estimate is not None and true is not None
     dx, dy, yaw = planar_offset(estimate, true)
@@ -187,6 +204,19 @@ def closed_loop(
     ``records``: the list the records are appended to as the trials end (default: a new
     one); a caller that keeps it keeps the finished trials when the run is interrupted
     (:func:`finished_trials`).
+
+    Args:
+        problem: The true scene (its object where it really is).
+        options: Policies, noise scales, distances, trials, seed, planner (default
+            :class:`ClosedLoopOptions`).
+        judge: How a plan is judged against the truth (:func:`kinematic_judge`, or the
+            physics judge of :mod:`openup_ompl.physics.sweep`).
+        progress: Called with a line per finished view (``None``: silent).
+        records: The list the records are appended to as the trials end.
+
+    Returns:
+        The records: policy, noise, distance [m], seed, ``u``, the estimate's error
+        [mm], whether it was seen, planned and succeeded, and the judge's fields.
     """
     from openup_ompl.planning import GraspPlanningSetup
 
@@ -268,7 +298,15 @@ def closed_loop(
 
 def finished_trials(records: list[dict[str, Any]], policies: int) -> list[dict[str, Any]]:
     """The records of the trials (views) that ended for all ``policies`` (an interrupted
-    run's last view may have ended for some only)."""
+    run's last view may have ended for some only).
+
+    Args:
+        records: The records so far.
+        policies: The number of policies per view.
+
+    Returns:
+        The complete views' records, in order.
+    """
     counts = Counter((r["noise"], r["distance"], r["seed"]) for r in records)
     return [r for r in records if counts[(r["noise"], r["distance"], r["seed"])] == policies]
 
@@ -283,7 +321,14 @@ def summarize(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     """One row per (policy, noise, distance) with the :data:`CSV_COLUMNS`: ``mean_u`` and
     ``mean_error_mm`` over the trials that have one (``None`` if none has), planning
     failures among the views that saw the object, and the views that did not
-    (``not_seen``)."""
+    (``not_seen``).
+
+    Args:
+        records: The trials' records (:func:`closed_loop`).
+
+    Returns:
+        The rows; rates in [0, 1], ``mean_error_mm`` [mm].
+    """
     cells: dict[tuple[str, float, float], list[dict[str, Any]]] = {}
     for record in records:
         key = (record["policy"], record["noise"], record["distance"])
@@ -314,7 +359,15 @@ def _decimals(value: float | None, digits: int) -> str:
 
 def write_csv(rows: Sequence[dict[str, Any]], path: Path) -> Path:
     """The experiment's CSV: :data:`CSV_COLUMNS`, one row per cell (an unknown mean left
-    empty)."""
+    empty).
+
+    Args:
+        rows: The rows of :func:`summarize`.
+        path: The CSV file to write.
+
+    Returns:
+        ``path``.
+    """
     make_dir(path.parent)
     with path.open("w", newline="") as handle:
         writer = csv.DictWriter(handle, fieldnames=list(CSV_COLUMNS))
@@ -333,7 +386,14 @@ def write_csv(rows: Sequence[dict[str, Any]], path: Path) -> Path:
 
 def read_csv(path: Path) -> list[dict[str, Any]]:
     """Rows of a CSV written by :func:`write_csv`, numbers as numbers (an empty mean as
-    ``None``)."""
+    ``None``).
+
+    Args:
+        path: The CSV file.
+
+    Returns:
+        One dictionary per row, keyed by :data:`CSV_COLUMNS`.
+    """
     with path.open(newline="") as handle:
         rows = list(csv.DictReader(handle))
     ints = ("trials", "successes", "planning_failures", "not_seen")

@@ -24,7 +24,14 @@ ELLIPSE_CHI2 = 6.18
 
 
 def shape_superquadric(shape: Shape) -> Superquadric:
-    """A scene shape as a near-exact superquadric (exponents 0.02 for edges), to draw."""
+    """A scene shape as a near-exact superquadric (exponents 0.02 for edges), to draw.
+
+    Args:
+        shape: A box, cylinder or sphere of a scene.
+
+    Returns:
+        The superquadric (half-sizes [m], exponents, pose).
+    """
     placement = pin.XYZQUATToSE3(shape.pose)
     if shape.shape == "box":
         assert shape.size is not None
@@ -56,6 +63,15 @@ def plot_perception(perception: Perception, truth: Shape, out: Path, title: str 
     Left: the object's points, the fitted superquadric (wireframe) and the true object
     (grey) in 3D. Right: the same from above (world x-y) with the estimated centre's
     2-sigma ellipse (:data:`ELLIPSE_CHI2`) and the true centre.
+
+    Args:
+        perception: The perception (cloud, fit, covariance, ``u``).
+        truth: The true object.
+        out: The PNG file (its directory is created).
+        title: Figure title (default: ``u`` and the point count).
+
+    Returns:
+        ``out``.
 
     Raises:
         MissingExtra: matplotlib is not installed.
@@ -115,30 +131,63 @@ def plot_perception(perception: Perception, truth: Shape, out: Path, title: str 
 
 def plot_closed_loop(rows: Sequence[dict[str, Any]], out: Path, title: str = "") -> Path:
     """Success rate against the sensor noise scale, one line per policy, one panel per
-    camera distance (the rows of :func:`~openup_ompl.perception.closed_loop.summarize`)."""
+    camera distance, with Wilson 95 % intervals and the trial count of each point.
+
+    Args:
+        rows: The rows of :func:`~openup_ompl.perception.closed_loop.summarize` (or of
+            ``closed_loop.csv``): ``policy``, ``noise``, ``distance`` [m], ``trials``,
+            ``successes``.
+        out: PNG file to write (its directory is created).
+        title: Figure title, wrapped to the figure's width (default: none).
+
+    Returns:
+        The PNG's path.
+
+    Raises:
+        MissingExtra: matplotlib is not installed.
+    """
+    import textwrap
+
+    from scipy.stats import binomtest
+
     from openup_ompl.viz._mpl import _pyplot
 
     plt = _pyplot()
     distances = sorted({row["distance"] for row in rows})
     policies = list(dict.fromkeys(row["policy"] for row in rows))
-    fig, axes = plt.subplots(1, len(distances), figsize=(4.5 * len(distances), 3.8), sharey=True)
+    noises = sorted({row["noise"] for row in rows})
+    width = 4.5 * len(distances)
+    fig, axes = plt.subplots(1, len(distances), figsize=(width, 3.8), sharey=True)
+    # Policies side by side around each noise, so that equal rates do not hide each other.
+    dodge = 0.012 * (max(noises) - min(noises) or 1.0)
     for ax, distance in zip(np.atleast_1d(axes), distances, strict=True):
-        for policy in policies:
+        counts: set[int] = set()
+        for k, policy in enumerate(policies):
             cells = sorted(
-                (row["noise"], row["success_rate"], row["trials"])
+                (row["noise"], int(row["successes"]), int(row["trials"]))
                 for row in rows
                 if row["distance"] == distance and row["policy"] == policy
             )
+            if not cells:
+                continue
+            x = np.array([c[0] for c in cells]) + (k - (len(policies) - 1) / 2) * dodge
+            rate = np.array([c[1] / c[2] for c in cells])
+            ci = [binomtest(c[1], c[2]).proportion_ci(method="wilson") for c in cells]
+            low = rate - np.array([interval.low for interval in ci])
+            high = np.array([interval.high for interval in ci]) - rate
             label = "u from covariance" if policy == "covariance" else f"u = {policy}"
-            ax.plot([c[0] for c in cells], [c[1] for c in cells], "o-", label=label)
-        ax.set_title(f"camera at {distance:g} m")
+            ax.errorbar(x, rate, yerr=[low, high], fmt="o-", capsize=2, lw=1.2, label=label)
+            counts.update(c[2] for c in cells)
+        shown = "/".join(str(n) for n in sorted(counts))
+        ax.set_title(f"camera at {distance:g} m, {shown} trials per point", fontsize=10)
         ax.set_xlabel("sensor noise scale (1: Kinect v1)")
         ax.set_ylim(-0.05, 1.05)
         ax.grid(alpha=0.3)
-    np.atleast_1d(axes)[0].set_ylabel("success rate")
-    np.atleast_1d(axes)[0].legend(fontsize=8)
+    first = np.atleast_1d(axes)[0]
+    first.set_ylabel("success rate (Wilson 95 % interval)")
+    first.legend(fontsize=8)
     if title:
-        fig.suptitle(title)
+        fig.suptitle(textwrap.fill(title, width=int(width * 11)), fontsize=11)
     fig.tight_layout()
     make_dir(out.parent)
     fig.savefig(out, dpi=110)

@@ -78,6 +78,14 @@ def kinect_sigmas(
     """Axial and lateral standard deviations [m] at ``depth`` [m] and ``incidence`` [rad]
     (Nguyen et al. 2012, eqs. 5-6, times ``options.scale``).
 
+    Args:
+        depth: Depths along the optical axis [m], positive.
+        incidence: Angles between each ray and the surface normal [rad], in ``[0, pi/2)``.
+        options: Noise scale and limits (default :class:`NoiseOptions`).
+
+    Returns:
+        ``(sigma_axial, sigma_lateral)`` [m], each the shape of ``depth``.
+
     Raises:
         ConfigError: A depth not positive or an incidence outside ``[0, pi/2)``, where
             the model has no meaning.
@@ -133,6 +141,15 @@ def noisy_cloud(
     y + sigma_L n_y, z + sigma_z n_z)``, ``n`` standard normal; pixels beyond
     ``max_incidence`` are dropped. The object's points are the pixels whose ray hit one of
     the object's geoms (:attr:`DepthView.on_object`).
+
+    Args:
+        view: The rendered view.
+        options: Noise scale and limits (default :class:`NoiseOptions`).
+        rng: The run's random generator.
+
+    Returns:
+        The object's noisy points with their pixels and standard deviations, and the
+        rest of the scene's points (:class:`PointCloud`).
     """
     options = options or NoiseOptions()
     incidence = view.incidence
@@ -166,6 +183,14 @@ def normal_sigma(
     the normal (capped at ``max_incidence``) and the noise covariance ``diag(sigma_L^2,
     sigma_L^2, sigma_z^2)`` (camera frame) is projected on the normal. Only what a real
     system has is used: the measured points, the fit and the sensor's model.
+
+    Args:
+        position: The camera's position [m], world frame.
+        rotation: The camera's orientation (3 x 3, camera to world).
+        options: Noise scale and limits (default :class:`NoiseOptions`).
+
+    Returns:
+        The function ``sigma(points (n, 3) [m], normals (n, 3)) -> (n,)`` [m].
     """
     options = options or NoiseOptions()
     cap = math.radians(options.max_incidence)

@@ -79,6 +79,12 @@ def clearance_per_u(problem: Problem) -> float:
     kinematics of its collision geometry (boxes around each link, in the palm frame) at
     ``u = 0`` and ``u = 1``; half the largest growth is what each side of the object
     gains: ``k = max_axis (extent(u=1) - extent(u=0)) / 2``.
+
+    Args:
+        problem: The scene (robot, grasp pose, law).
+
+    Returns:
+        ``k`` [m per unit of ``u``], ``>= 0``.
     """
     return _opening(problem)[0]
 
@@ -86,7 +92,14 @@ def clearance_per_u(problem: Problem) -> float:
 def closing_direction(problem: Problem) -> np.ndarray:
     """The world unit vector along which the hand opens with ``u`` at the grasp (the palm
     axis across the approach whose extent grows most from ``u = 0`` to ``u = 1``); zeros
-    for a hand that does not open with ``u``."""
+    for a hand that does not open with ``u``.
+
+    Args:
+        problem: The scene (robot, grasp pose, law).
+
+    Returns:
+        A unit vector ``(3,)`` in the world frame, or zeros.
+    """
     axis = _opening(problem)[1]
     return np.asarray(pin.XYZQUATToSE3(problem.grasp_pose).rotation @ axis)
 
@@ -149,6 +162,9 @@ def lateral_sigma(
         sizes: The object's half-extents [m] along its axes (default: the scene shape's).
         cross_covariance: ``(3, 3)`` covariance between the position and the rotation
             (default zero).
+
+    Returns:
+        The standard deviation [m].
     """
     shape = problem.object
     if shape is None:
@@ -240,6 +256,17 @@ def u_from_covariance(
 
     ``u = 1`` when the hand cannot cover that error (or ``k = 0``: a hand that does not
     open with ``u``) and the error is not zero.
+
+    Args:
+        position_covariance: ``(3, 3)`` [m^2], world frame.
+        rotation_covariance: ``(3, 3)`` [rad^2] of a small world-frame rotation.
+        problem: The scene at the estimate (robot, grasp, law, object).
+        sizes: The object's half-extents [m] (default: the scene shape's).
+        coverage: Standard deviations to cover.
+        cross_covariance: ``(3, 3)`` position-rotation covariance (default zero).
+
+    Returns:
+        ``u`` in [0, 1].
     """
     if not (math.isfinite(coverage) and coverage > 0):
         raise ConfigError("coverage", coverage, "a positive number of standard deviations")

@@ -133,7 +133,14 @@ class ExecutionRecord:
     ended_early: dict[str, Any] | None = None
 
     def to_dict(self, frames: bool = True) -> dict[str, Any]:
-        """The file's contents (``frames=False``: without the rollout frames)."""
+        """The file's contents (``frames=False``: without the rollout frames).
+
+        Args:
+            frames: Include the rollout's frames (every 20 ms).
+
+        Returns:
+            The ``openup-execution/1`` contents, JSON-ready (see the file formats).
+        """
         data = {"format": EXECUTION_FORMAT, **asdict(self)}
         if not frames:
             data.pop("frames")
@@ -142,7 +149,15 @@ class ExecutionRecord:
 
 
 def write_execution(record: ExecutionRecord, out_dir: str | Path) -> Path:
-    """Write ``out_dir/execution.json``; returns its path."""
+    """Write ``out_dir/execution.json``; returns its path.
+
+    Args:
+        record: The rollout's record.
+        out_dir: The directory to write into.
+
+    Returns:
+        The path of ``execution.json``.
+    """
     text = json.dumps(record.to_dict(), indent=1, allow_nan=False) + "\n"
     return write_atomic(Path(out_dir) / "execution.json", text)
 
@@ -151,7 +166,14 @@ def is_execution(path: str | Path) -> bool:
     """Whether ``path`` is a JSON object of the execution format's family (any version,
     any layout: for the command line to pick its reader, whose errors then name the
     version it expects). A file :func:`~openup_ompl._io.read_bytes` refuses (a device,
-    one too large) is not one: the plan reader then says why."""
+    one too large) is not one: the plan reader then says why.
+
+    Args:
+        path: The file to look at.
+
+    Returns:
+        True if its ``format`` names the execution family.
+    """
     try:
         data = json.loads(read_bytes(path, "execution file"))
     except (OSError, ValueError, RecursionError):  # ConfigError is a ValueError
@@ -162,6 +184,12 @@ def is_execution(path: str | Path) -> bool:
 
 def read_execution(path: str | Path) -> dict[str, Any]:
     """Read an ``execution.json`` and check it (:func:`check_execution`).
+
+    Args:
+        path: The ``execution.json`` file.
+
+    Returns:
+        Its checked contents.
 
     Raises:
         ConfigError: Not a readable execution file, or a key missing or holding a bad
@@ -195,6 +223,10 @@ def check_execution(data: dict[str, Any], where: str = "") -> None:
     (``frames`` and ``source`` may be absent) with its JSON type, and the values the viewer
     reads (``offset``, ``first_contact``, ``frames``). ``source`` is checked where it is
     replayed (:meth:`~openup_ompl.plan.PlanFile.from_dict`).
+
+    Args:
+        data: The file's parsed contents.
+        where: Prefix of error locations (the file name and ``": "``).
 
     Raises:
         ConfigError: A key missing or holding a bad value, located at ``where + key``.

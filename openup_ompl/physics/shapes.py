@@ -23,7 +23,14 @@ __all__ = ["add_free_body", "add_scene", "add_shape", "mujoco_quat", "scene_spec
 
 
 def mujoco_quat(pose: Sequence[float] | np.ndarray) -> np.ndarray:
-    """``[qw, qx, qy, qz]`` of a ``[x, y, z, qx, qy, qz, qw]`` pose."""
+    """``[qw, qx, qy, qz]`` of a ``[x, y, z, qx, qy, qz, qw]`` pose.
+
+    Args:
+        pose: ``[x, y, z, qx, qy, qz, qw]`` [m].
+
+    Returns:
+        The unit quaternion, scalar first (MuJoCo's order).
+    """
     q = np.asarray(pose, dtype=float)[3:7]
     return np.array([q[3], q[0], q[1], q[2]])
 
@@ -87,6 +94,13 @@ def scene_spec(problem: Problem, *, free_object: bool = False) -> mujoco.MjSpec:
 
     The object's mass and friction are the scene's (``[object] mass``, ``friction``); an
     obstacle's friction is its own ``friction`` key, else MuJoCo's default.
+
+    Args:
+        problem: The scene.
+        free_object: Give the object a free joint.
+
+    Returns:
+        The MuJoCo spec (not compiled).
     """
     import mujoco
 
@@ -106,7 +120,19 @@ def add_scene(
     """Add a scene's obstacles (static geoms of the world body) and its object (a geom of
     the body ``"object"``, free if ``free_object``) to ``spec``; returns the object's
     body. ``object_attributes`` override the object geom's (``friction``, ``mass``,
-    ``condim``, ...)."""
+    ``condim``, ...).
+
+    Args:
+        spec: The MuJoCo spec to add to.
+        obstacles: The scene's obstacles (static geoms).
+        scene_object: The object, if any.
+        free_object: Give the object a free joint (physics) rather than fixing it
+            (the camera).
+        **object_attributes: MuJoCo geom attributes of the object.
+
+    Returns:
+        The object's body, or ``None`` without an object.
+    """
     for obstacle in obstacles:
         add_shape(spec.worldbody, obstacle, spec=spec, **_contact(obstacle))
     if scene_object is None:
@@ -121,7 +147,17 @@ def add_free_body(
 ) -> mujoco.MjsBody:
     """Add ``shape`` as the geom of a free body ``name`` (a free joint of that name) at
     the shape's pose, with its ``mass`` and ``friction``; ``attributes`` override the
-    geom's. Returns the body."""
+    geom's. Returns the body.
+
+    Args:
+        spec: The MuJoCo spec to add to.
+        shape: The shape (its pose, ``mass`` [kg] and ``friction``).
+        name: The body's and its free joint's name.
+        **attributes: MuJoCo geom attributes overriding the shape's.
+
+    Returns:
+        The new body.
+    """
     body = _add_body(spec, shape, name, **attributes)
     body.add_freejoint(name=name)
     return body

@@ -25,7 +25,15 @@ __all__ = ["physics_judge", "physics_run", "physics_trial"]
 
 
 def physics_trial(record: dict[str, Any]) -> dict[str, Any]:
-    """A sweep trial of an execution record's contents (``to_dict(frames=False)``)."""
+    """A sweep trial of an execution record's contents (``to_dict(frames=False)``).
+
+    Args:
+        record: An execution record as a dictionary, without frames.
+
+    Returns:
+        The trial's row: the offset (``dx``, ``dy`` [m], ``yaw`` [rad]), ``success``,
+        ``collision`` (an obstacle touched) and the record's other fields.
+    """
     offset = record["offset"]
     return {
         "dx": offset["dx"],
@@ -56,6 +64,16 @@ def physics_run(
     """Plan once at the nominal pose, then execute every perturbation in physics (inside
     a task process). The kinematic grasp test's settings (``friction``, ``torsion``) are
     accepted and unused: physics has its own friction (the scene's).
+
+    Args:
+        seed: The planning seed.
+        scene: The scene file's path.
+        u: The uncertainty planned with, in [0, 1].
+        planner: The planner's name.
+        time_limit: The planning time limit [s].
+        perturbations: ``(dx [m], dy [m], yaw [rad])`` object offsets to execute against.
+        open_arrival: Plan with the open-arrival law.
+        **_kinematic: The kinematic test's settings, unused.
 
     Returns:
         ``{"u", "seed", "planned", "error", "solve_time", "rows", "physics", "trials"}``.
@@ -90,6 +108,11 @@ def physics_judge(setup: GraspPlanningSetup, plan: Plan, truth: Problem) -> dict
     closed_loop`): the plan, made for the object where perception put it, executed in a
     world whose object stands where it truly is (its full pose: the estimate's height and
     tilt errors are not carried into the world, the object rests as it really does).
+
+    Args:
+        setup: The setup the plan was made with (at the estimate).
+        plan: The plan.
+        truth: The true scene.
 
     Returns:
         The rollout's sweep trial (:func:`physics_trial`); a diverged simulation is a

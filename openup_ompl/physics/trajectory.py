@@ -39,7 +39,15 @@ class Timed:
         self.duration = float(self.times[-1])
 
     def at(self, t: float, out: np.ndarray | None = None) -> np.ndarray:
-        """The configuration at time ``t`` [s] (held at the ends)."""
+        """The configuration at time ``t`` [s] (held at the ends).
+
+        Args:
+            t: Time from the start [s].
+            out: An array to write into (``(n,)``), or ``None`` for a new one.
+
+        Returns:
+            The configuration ``(n,)`` [rad or m] at ``t``, interpolated between rows.
+        """
         i = int(np.searchsorted(self.times, t, side="right"))
         if i <= 0:
             q = self.rows[0]
@@ -89,6 +97,9 @@ def time_path(
         velocity_limit: ``(n,)`` joint velocity limits [rad/s or m/s].
         speed: Fraction of the velocity limits to move at, in (0, 1].
         acceleration: Joint acceleration limit [rad/s^2 or m/s^2].
+
+    Returns:
+        The timed path (:class:`Timed`): its rows' times [s] and interpolation.
     """
     rows = np.asarray(rows, dtype=float)
     n = len(rows)

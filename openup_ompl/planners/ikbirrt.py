@@ -201,7 +201,11 @@ class IKBiRRT(ob.Planner):
         self.goal_tree_size = 0
 
     def set_seed(self, seed: int | None) -> None:
-        """Restart the planner's random generator from ``seed``."""
+        """Restart the planner's random generator from ``seed``.
+
+        Args:
+            seed: The generator's seed (``None``: drawn from the operating system).
+        """
         self._rng = np.random.default_rng(seed)
 
     def clear(self) -> None:
@@ -216,6 +220,15 @@ class IKBiRRT(ob.Planner):
         super().setup()
 
     def solve(self, ptc: ob.PlannerTerminationCondition) -> ob.PlannerStatus:
+        """OMPL's solve: grow the start and goal trees until they connect or ``ptc`` ends.
+
+        Args:
+            ptc: OMPL's termination condition (a time limit, or a caller's condition).
+
+        Returns:
+            OMPL's status: ``EXACT_SOLUTION`` (the path added to the problem definition),
+            ``TIMEOUT``, or ``INVALID_START`` / ``INVALID_GOAL``.
+        """
         pdef = self.getProblemDefinition()
         goal_region = pdef.getGoal()
         if not isinstance(goal_region, IKGoalRegion):

@@ -1,6 +1,6 @@
 """Pictures of a plan: an interactive HTML animation, a storyboard and the paper's Fig. 3.
 
-Everything is built from a plan file alone (README, Files: Plan) and the URDF and meshes it names.
+Everything is built from a plan file alone (see the file formats) and the URDF and meshes it names.
 The optional extra ``viz`` (``pip install 'openup-ompl[viz]'``) brings what draws them:
 meshcat (its three.js viewer, inlined in the HTML) and matplotlib. They are imported only
 when a picture is made; a missing one raises :class:`~openup_ompl.exceptions.MissingExtra`.
@@ -44,6 +44,15 @@ def show(
 ) -> Shown:
     """Write the pictures of a plan file: ``<stem>.html``, ``<stem>_storyboard.png`` and
     ``<stem>_hand_law.png`` in ``out_dir`` (default: the plan file's directory).
+
+    Args:
+        plan: The plan file.
+        out_dir: Where to write (default: the plan file's directory).
+        html: Animation options (default :class:`HtmlOptions`).
+        storyboard: Storyboard options (default :class:`StoryboardOptions`).
+
+    Returns:
+        The three paths written (:class:`Shown`).
 
     Raises:
         ConfigError: ``plan`` is not a path (draw a :class:`~openup_ompl.Plan` in memory

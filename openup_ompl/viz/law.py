@@ -33,6 +33,13 @@ def figure_path(out: str | Path, where: str = "out") -> Path:
     name without a suffix (as matplotlib's ``savefig`` does), so that callers report the
     real path.
 
+    Args:
+        out: The file asked for.
+        where: How to name it in an error.
+
+    Returns:
+        The path the figure will be written to.
+
     Raises:
         ConfigError: ``out`` is a directory, or its suffix a format matplotlib cannot
             write (the message lists those it can), named at ``where``.
@@ -73,19 +80,62 @@ def _scale(prismatic: bool) -> tuple[float, str]:
 
 def _references(ax: Any, law: HandLaw, j: int, scale: float, inside: bool = False) -> None:
     """Dotted lines at c, b, w of joint ``j``, labelled at the right edge (``inside``:
-    just above the line, inside the axes, leaving the edge to a twin axis)."""
-    for name in ("c", "b", "w"):
-        value = float(getattr(law, name)[j]) * scale
+    just above the line, inside the axes, leaving the edge to a twin axis). Levels closer
+    than 4 % of the axis height share one label (``b = w`` when equal, else ``b, w``), so
+    that labels never overlap."""
+    levels = sorted((float(getattr(law, name)[j]) * scale, name) for name in ("c", "b", "w"))
+    bottom, top = ax.get_ylim()
+    near = 0.04 * abs(top - bottom)
+    clusters: list[list[tuple[float, str]]] = []
+    for value, name in levels:
         ax.axhline(value, ls=":", color="grey", lw=0.8, zorder=0)
+        if clusters and value - clusters[-1][-1][0] <= near:
+            clusters[-1].append((value, name))
+        else:
+            clusters.append([(value, name)])
+    for cluster in clusters:
+        values = [value for value, _ in cluster]
+        equal = max(values) - min(values) <= 1e-9 * max(1.0, abs(max(values)))
+        label = (" = " if equal else ", ").join(sorted(name for _, name in cluster))
         ax.annotate(
-            name if inside else f" {name}",
-            (0.995 if inside else 1.0, value),
+            label if inside else f" {label}",
+            (0.995 if inside else 1.0, float(np.mean(values))),
             xycoords=("axes fraction", "data"),
             ha="right" if inside else "left",
             va="bottom" if inside else "center",
             fontsize=9,
             color="dimgrey",
         )
+
+
+def _moving(law: HandLaw, groups: list[list[int]]) -> tuple[list[list[int]], list[list[int]]]:
+    """``groups`` split into those the law moves and those it holds (``c = b = w``): a held
+    joint gets no panel of its own, only a line under the figure. (If the law holds every
+    joint, all are drawn.)"""
+    held = [g for g in groups if np.ptp([law.c[g[0]], law.b[g[0]], law.w[g[0]]]) <= 1e-12]
+    moving = [g for g in groups if g not in held]
+    return (moving, held) if moving else (groups, [])
+
+
+def _held_note(
+    fig: Any, law: HandLaw, held: list[list[int]], names: Sequence[str], kinds: Any
+) -> None:
+    """A line under the figure naming the joints the law holds still, with their value."""
+    if not held:
+        return
+    parts = []
+    for group in held:
+        scale, unit = _scale(bool(kinds[group[0]]))
+        parts.append(f"{_joint_label(names, group)} at {float(law.c[group[0]]) * scale:g} {unit}")
+    fig.text(
+        0.5,
+        0.005,
+        "held still by the law (c = b = w): " + "; ".join(parts),
+        ha="center",
+        va="bottom",
+        fontsize=8,
+        color="dimgrey",
+    )
 
 
 def _mga_line(ax: Any, mga: float) -> None:
@@ -163,7 +213,7 @@ def plot_hand_law(
     plt = _pyplot()
     scene = _plan_scene(plan)
     law, hand = scene.law, scene.hand_path
-    groups = _groups(np.vstack([law.c, law.b, law.w, hand]))
+    groups, held = _moving(law, _groups(np.vstack([law.c, law.b, law.w, hand])))
     d_max = max(1.05, float(scene.distances.max()) * 1.02)
     mga_row = scene.mga_row
     fig, axes = plt.subplots(len(groups), 2, figsize=(11.5, 3.6 * len(groups) + 0.5), squeeze=False)
@@ -223,7 +273,8 @@ def plot_hand_law(
         f"Fig. 3 for this plan: hand law{kind}, u = {law.u:g}, mga = {law.mga:g}{continuous}"
     )
     axes[0, 1].set_title(f"{scene.plan.planner}: the hand along the reach")
-    fig.tight_layout()
+    _held_note(fig, law, held, scene.hand_joints, scene.prismatic)
+    fig.tight_layout(rect=(0.0, 0.025 if held else 0.0, 1.0, 1.0))
     return _save(fig, path, dpi)
 
 
@@ -265,7 +316,7 @@ def plot_law(
     plt = _pyplot()
     names = list(joint_names or [f"joint {j}" for j in range(law.size)])
     kinds = list(prismatic) if prismatic is not None else [True] * law.size
-    groups = _groups(np.vstack([law.c, law.b, law.w, law.lower, law.upper]))
+    groups, held = _moving(law, _groups(np.vstack([law.c, law.b, law.w, law.lower, law.upper])))
     fig, axes = plt.subplots(len(groups), 1, figsize=(7.2, 3.9 * len(groups)), squeeze=False)
     colors = plt.get_cmap("viridis")(np.linspace(0.0, 0.85, len(laws)))
     for (ax,), group in zip(axes, groups, strict=True):
@@ -294,5 +345,6 @@ def plot_law(
     variant = ", continuous variant" if law.continuous else ""
     variant += ", open arrival" if law.open_arrival else ""
     axes[0, 0].set_title(title or f"hand law (Algorithm 3), mga = {law.mga:g}{variant}")
-    fig.tight_layout()
+    _held_note(fig, law, held, names, kinds)
+    fig.tight_layout(rect=(0.0, 0.03 if held else 0.0, 1.0, 1.0))
     return _save(fig, path, dpi)

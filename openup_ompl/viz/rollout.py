@@ -64,7 +64,14 @@ def _loaded(execution: dict[str, Any], where: str = "") -> tuple[PlanScene, dict
 def key_frames(execution: dict[str, Any]) -> list[tuple[int, str]]:
     """``(frame, title)`` of the instants the storyboard shows: the start, the first
     hand-object contact if it came before closing, the end of each of reach, close
-    (with the squeeze), lift and hold."""
+    (with the squeeze), lift and hold.
+
+    Args:
+        execution: An execution file's contents (with frames).
+
+    Returns:
+        ``(frame index, panel title)`` pairs, in time order.
+    """
     frames = execution["frames"]
     phases = frames["phase"]
     period = frames["period_s"]
@@ -88,7 +95,16 @@ def key_frames(execution: dict[str, Any]) -> list[tuple[int, str]]:
 
 def write_rollout_storyboard(execution: dict[str, Any], out: str | Path, dpi: int = 110) -> Path:
     """Write the storyboard PNG of a rollout (module docstring) from an execution file's
-    contents (:func:`~openup_ompl.physics.record.read_execution`)."""
+    contents (:func:`~openup_ompl.physics.record.read_execution`).
+
+    Args:
+        execution: An execution file's contents (with frames).
+        out: The PNG file.
+        dpi: Resolution [dot/inch].
+
+    Returns:
+        The PNG's path.
+    """
     scene, _ = _loaded(execution)
     return _storyboard(scene, execution, out, dpi)
 
@@ -187,6 +203,13 @@ def _storyboard(scene: PlanScene, execution: dict[str, Any], out: str | Path, dp
 def show_execution(execution: str | Path, out_dir: str | Path | None = None) -> ShownExecution:
     """Write ``<stem>.html`` (the rollout animated) and ``<stem>_storyboard.png`` of an
     ``execution.json`` in ``out_dir`` (default: its directory).
+
+    Args:
+        execution: The ``execution.json`` file.
+        out_dir: Where to write (default: the file's directory).
+
+    Returns:
+        The two paths written (:class:`ShownExecution`).
 
     Raises:
         ConfigError: Not an execution file, or one written without its frames.

@@ -74,7 +74,15 @@ class StoryboardOptions:
 
 def frame_rows(scene: PlanScene, count: int) -> list[int]:
     """Path rows to show: evenly spaced in palm travel, with the row where the hand
-    reaches its maximum grip aperture (``d <= mga``) replacing the nearest of them."""
+    reaches its maximum grip aperture (``d <= mga``) replacing the nearest of them.
+
+    Args:
+        scene: The loaded plan.
+        count: How many frames (fewer than 2 count as 2).
+
+    Returns:
+        Row indices of the plan's path, increasing, the first 0 and the last the grasp.
+    """
     count = max(2, count)
     targets = np.linspace(0.0, 1.0, count)
     rows = [int(np.argmin(np.abs(scene.progress - t))) for t in targets]
@@ -236,7 +244,16 @@ def closeup_bounds(
 ) -> tuple[np.ndarray, np.ndarray]:
     """The cube [m, world frame] a hand close-up draws: around ``anchor`` (a position, or a
     pose whose first three values are one: the palm's origin, the object's centre) and the
-    hand's triangles, its side ``margin`` times their largest extent."""
+    hand's triangles, its side ``margin`` times their largest extent.
+
+    Args:
+        anchor: A position [m] or a pose whose first three values are one.
+        hand: The hand's meshes (vertices [m], triangles).
+        margin: The cube's side over the hand's largest extent.
+
+    Returns:
+        ``(low, high)`` corners [m], each ``(3,)``.
+    """
     points = np.concatenate(
         [np.asarray(anchor, dtype=float)[None, :3], _triangles(hand).reshape(-1, 3)]
     )
@@ -268,7 +285,8 @@ def _title(scene: PlanScene, row: int) -> str:
         title = f"MGA, {scene.progress[row]:.0%} of the reach"
     else:
         title = f"{scene.progress[row]:.0%} of the reach"
-    return f"{title}\nd = {scene.distances[row]:.2f}"
+    d = float(scene.distances[row])
+    return f"{title}\nd = {d:.2f}" + (", farther than at the start" if d > 1.005 else "")
 
 
 def write_storyboard(
@@ -307,13 +325,23 @@ def write_storyboard(
     size = options.panel_size
     fig = plt.figure(figsize=(size * len(rows), size * (1.0 if n_rows == 1 else 1.9)))
     grid = fig.add_gridspec(n_rows, len(rows), height_ratios=[1.0, 0.9][:n_rows])
-    grid.update(left=0.005, right=0.995, top=0.85, bottom=0.06, wspace=0.02, hspace=0.12)
+    grid.update(left=0.005, right=0.995, top=0.82, bottom=0.06, wspace=0.02, hspace=0.12)
     law = scene.law
     fig.suptitle(
         f"{scene.plan.planner} reach to grasp, the hand following the law"
         f" (u = {law.u:g}, mga = {law.mga:g})" + ("" if law.fixed is None else " — fixed hand"),
         fontsize=14,
         y=0.99,
+    )
+    fig.text(
+        0.5,
+        0.935,
+        "d: the palm's distance to the grasp over its distance at the start (Algorithm 1),"
+        " above 1 where the palm first moves away; the hand follows the law of d"
+        " (Algorithm 3), widest where d reaches mga",
+        ha="center",
+        fontsize=10,
+        color="dimgrey",
     )
     for column, (row, (arm, hand)) in enumerate(zip(rows, frames, strict=True)):
         ax = fig.add_subplot(grid[0, column], projection="3d")
@@ -339,8 +367,9 @@ def write_storyboard(
         _draw(close, layers, lo, hi, robot.closeup_direction(q, direction), strict=True)
         values = scene.hand_path[row]
         share = float(scene.opening(values)[0])
+        past = "; past w: the law's jump at mga" if share > 1.005 else ""
         close.set_title(
-            f"hand {share:.0%} of the way c → w\n{scene.hand_text(values)}",
+            f"hand {share:.0%} of the way c → w\n{scene.hand_text(values)}{past}",
             fontsize=10.5,
             y=-0.1,
         )

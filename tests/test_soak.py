@@ -1,0 +1,67 @@
+"""The soak script (``benchmarks/soak.py``) on a tiny size: its plans re-check valid, its
+shards resume, and its re-check refuses a tampered plan."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import openup_ompl as oo
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _soak(*args: str) -> subprocess.CompletedProcess[str]:
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    return subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "soak.py"), "--quiet", *args],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
+
+
+@pytest.mark.slow
+def test_soak_plans_recheck_and_resume(tmp_path: Path) -> None:
+    """Two instances (a hand-written Panda scene's and a generated LWA3-SDH family's) plan
+    and re-check valid; a larger rerun adds the third instance's shard and keeps the two
+    made before."""
+    base = ("--planners", "ikbirrt", "--us", "0.3", "--robots", "panda", "lwa3_sdh")
+    done = _soak("--plans", "2", *base, "--out", str(tmp_path))
+    assert done.returncode == 0, done.stderr[-2000:]
+    summary = json.loads((tmp_path / "soak.json").read_text())
+    assert summary["plans"] == 2 and summary["counts"].get("invalid", 0) == 0
+    assert summary["counts"].get("valid", 0) >= 1
+    assert set(summary["groups"]) >= {"panda", "lwa3_sdh", "ikbirrt"}
+    shards = {p: p.stat().st_mtime_ns for p in (tmp_path / "shards").glob("*.json")}
+    assert len(shards) == 2
+    again = _soak("--plans", "3", *base, "--out", str(tmp_path))
+    assert again.returncode == 0, again.stderr[-2000:]
+    after = {p: p.stat().st_mtime_ns for p in (tmp_path / "shards").glob("*.json")}
+    assert len(after) == 3 and all(after[p] == t for p, t in shards.items())
+    assert json.loads((tmp_path / "soak.json").read_text())["plans"] == 3
+
+
+def test_soak_recheck_refuses_a_tampered_plan() -> None:
+    """The soak's re-check passes a plan as made and refuses it once a hand column is
+    moved off the law or a row is moved through the table."""
+    soak = pytest.importorskip("benchmarks.soak")
+    recheck = soak._recheck_module()
+    problem = oo.load_scene(ROOT / "scenes" / "panda_can.toml")
+    plan = oo.GraspPlanningSetup(problem, u=0.3).solve(5.0, "ikbirrt", 1)
+    assert soak._recheck(plan, recheck, soak.RECHECK_STEP)["valid"]
+    hand = plan.path.copy()
+    hand[len(hand) // 2, problem.robot.hand_idx[0]] += 0.005
+    off_law = soak._recheck(oo.Plan(**{**vars(plan), "path": hand}), recheck, 0.01)
+    assert not off_law["valid"] and off_law["hand_error"] > 1e-3
+    sunk = plan.path.copy()
+    sunk[-2, problem.robot.arm_idx[3]] -= 0.5  # the elbow folded: the hand in the table
+    through = soak._recheck(oo.Plan(**{**vars(plan), "path": sunk}), recheck, 0.01)
+    assert not through["valid"] and through["colliding"]
