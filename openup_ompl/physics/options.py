@@ -99,7 +99,7 @@ class PhysicsOptions:
         early_end: End a rollout once its verdict is certain: at a robot link's first
             touch of a fixed obstacle (when the scene has no movable obstacle, whose
             disturbance is still to come), or during the hold once no link touches the
-            object and it and every neighbour have rested for 0.1 s (``dropped`` or ``no
+            object and it and every neighbour have rested for 0.15 s (``dropped`` or ``no
             contact``). The verdict is the full rollout's (tested on 126 trials); the
             record's numbers are those at the end (``ExecutionRecord.ended_early``).
             Sweeps and the closed loop's judge set it; ``execute`` does not.
