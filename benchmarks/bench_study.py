@@ -73,6 +73,9 @@ def main() -> int:
     parser.add_argument("--workers", type=int, default=2, help="workers of the projection")
     parser.add_argument("--json", default=None, help="write the results as JSON")
     args = parser.parse_args()
+    from ompl import util as ompl_util
+
+    ompl_util.setLogLevel(ompl_util.LOG_ERROR)  # as the task processes run
     info = _common.machine_info()
     rows = [measure(f, args.error, args.trials, tuple(args.policies)) for f in args.families]
     mean = statistics.fmean(r["mean_s"] for r in rows)

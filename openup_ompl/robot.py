@@ -17,8 +17,9 @@ import pinocchio as pin
 
 from openup_ompl import _toml
 from openup_ompl._model import frame_id
+from openup_ompl._mount import mount_hand
 from openup_ompl._resources import erd_share_dir
-from openup_ompl.exceptions import ConfigError, FrameNotFound, JointNotFound
+from openup_ompl.exceptions import ConfigError, JointNotFound
 from openup_ompl.hand_law import REFERENCE_TOLERANCE, HandLaw
 from openup_ompl.robot_file import (
     MimicSpec,
@@ -30,13 +31,10 @@ from openup_ompl.robot_file import (
 from openup_ompl.urdf import (
     _build,
     _convex_hulls,
-    _merged_srdf,
-    _merged_urdf,
     _resolve_chains,
     cache_dir,
     remove_srdf_pairs,
     urdf_mimic,
-    urdf_tree,
 )
 
 #: Also importable from here (their old home): the file format, the cache, frame lookup.
@@ -463,39 +461,10 @@ def load_robot(name_or_path: str | Path = "panda") -> Robot:
     package_dirs = [str(erd_share_dir()), str(spec.urdf.parent), str(spec.urdf.parent.parent)]
     model, collision, urdf_root = _build(spec.urdf, package_dirs, f"{spec.path.name}: urdf")
     urdf = spec.urdf
-    mount = spec.mount
-    if mount is not None:
-        for extra in (mount.urdf.parent, mount.urdf.parent.parent):
-            if str(extra) not in package_dirs:
-                package_dirs.append(str(extra))
-        if not any(f.name == mount.frame for f in model.frames):
-            raise FrameNotFound(mount.frame, [f.name for f in model.frames])
-        urdf, hand_urdf, hand_srdf = _merged_urdf(spec, mount, model, package_dirs, urdf_root)
-        urdf_root = urdf_tree(urdf, f"{spec.path.name}: merged urdf")
-        hand_model, hand_collision, _ = _build(
-            hand_urdf, package_dirs, f"{spec.path.name}: mount.urdf"
+    if spec.mount is not None:
+        model, collision, urdf, urdf_root, srdf = mount_hand(
+            spec, spec.mount, model, collision, urdf_root, package_dirs
         )
-        hand_root = hand_model.frames[1].name
-        mount_id = frame_id(model, mount.frame)
-        body = model.frames[mount_id]
-        while body.type != pin.FrameType.BODY and body.parentFrame != 0:
-            body = model.frames[body.parentFrame]
-        model, collision = pin.appendModel(
-            model, hand_model, collision, hand_collision, mount_id, pin.XYZQUATToSE3(mount.pose)
-        )
-        collision.removeAllCollisionPairs()
-        if spec.convex:
-            _convex_hulls(model, collision, spec.path.name)
-        collision.addAllCollisionPairs()
-        frames = {f.name for f in model.frames}
-        for pair in mount.disable_collisions:
-            for name in pair:
-                if name not in frames:
-                    raise FrameNotFound(name, sorted(frames))
-        srdf = _merged_srdf(
-            spec, mount, hand_srdf, [(body.name, hand_root), *mount.disable_collisions]
-        )
-        remove_srdf_pairs(model, collision, srdf, f"{spec.path.name}: merged srdf")
     else:
         if spec.convex:
             _convex_hulls(model, collision, spec.path.name)

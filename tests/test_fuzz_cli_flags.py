@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 from openup_ompl.__main__ import build_parser, main
 
 QUICK_EXAMPLES = 15
-MANY_EXAMPLES = 200  # per flag (42 flags: 8,400 inputs)
+MANY_EXAMPLES = 50  # per flag (42 flags: 2,100 inputs)
 TIERS = [
     pytest.param(QUICK_EXAMPLES, id="quick"),
     pytest.param(MANY_EXAMPLES, id="many", marks=pytest.mark.slow),

@@ -5,8 +5,8 @@ A random mutation of a valid file (a value replaced, nudged or removed, a key ad
 text cut or corrupted) is either read as written or refused with a typed error
 (:class:`~openup_ompl.exceptions.OpenUpError`) naming the bad key or value: never a
 traceback, a hang, or a result that differs silently from the file. The quick tier
-draws :data:`QUICK_EXAMPLES` inputs per reader, the slow one :data:`MANY_EXAMPLES`;
-both are derandomized (the same inputs on every run).
+draws :data:`QUICK_EXAMPLES` inputs per file, the slow one :data:`MANY_EXAMPLES` per
+reader (shared among its files); both are derandomized (the same inputs on every run).
 """
 
 from __future__ import annotations
@@ -43,6 +43,12 @@ TIERS = [
 HANG_S = 60
 ROOT = Path(__file__).resolve().parent.parent
 ROBOTS = ("panda", "lwa3_sdh", "ur5_allegro")
+
+
+def _share(examples: int, files: int) -> int:
+    """Inputs per file when a reader's ``examples`` are shared among ``files`` files (the
+    quick tier's count stays per file)."""
+    return examples if examples <= QUICK_EXAMPLES else -(-examples // files)
 
 
 def _run(check: Callable[..., None], strategy: st.SearchStrategy[Any], examples: int) -> None:
@@ -429,7 +435,8 @@ def test_mutated_scene_files_are_read_as_written_or_refused(
             view=_scene_view,
         )
 
-    _run(check, mutations(doc, toml=True), examples)
+    # The slow tier's inputs are per reader: shared among the shipped scene files.
+    _run(check, mutations(doc, toml=True), _share(examples, len(SCENES)))
 
 
 def _perceived_doc(tmp: Path, robots: dict[str, oo.Robot]) -> dict[str, Any]:
@@ -521,7 +528,7 @@ def test_mutated_robot_files_are_read_as_written_or_refused(
             view=_robot_view,
         )
 
-    _run(check, mutations(doc, toml=True), examples)
+    _run(check, mutations(doc, toml=True), _share(examples, len(ROBOTS)))
 
 
 # -- plan files --------------------------------------------------------------------------

@@ -14,7 +14,7 @@ from openup_ompl.exceptions import ConfigError
 from openup_ompl.study import StudyOptions, run_study
 from openup_ompl.study.errors import believe, parse_error
 from openup_ompl.study.families import instance_problem, parse_families, template_scene
-from openup_ompl.study.report import MAP_COLUMNS, PAIR_COLUMNS
+from openup_ompl.study.report import MAP_COLUMNS, PAIR_COLUMNS, map_rows, pair_rows
 from openup_ompl.study.run import run_trial, trial_seeds
 from openup_ompl.study.stats import mcnemar_exact, wilson_interval
 
@@ -144,3 +144,28 @@ def test_study_command_bad_input_exits_2(capsys: pytest.CaptureFixture, tmp_path
     assert status == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "panda-foo" in err[0]
+
+
+def _synthetic(family: str, error: str, held: list[tuple[bool, bool]]) -> dict:
+    trials = [
+        {"trial": i, "results": {
+            "0": {"u": 0.0, "planned": True, "held": a, "cause": None},
+            "1": {"u": 1.0, "planned": True, "held": b, "cause": None},
+        }}
+        for i, (a, b) in enumerate(held)
+    ]  # fmt: skip
+    return {"family": family, "error": error, "trials": trials}
+
+
+def test_pooled_rows_sum_the_cells_and_stay_paired() -> None:
+    """With two families, 'all' rows add their counts and pair trial by trial."""
+    records = [
+        _synthetic("a", "pose-1cm", [(True, True), (False, True), (False, True)]),
+        _synthetic("b", "pose-1cm", [(True, False), (False, True)]),
+    ]
+    rows = {(r["family"], r["policy"]): r for r in map_rows(records, ["0", "1"])}
+    assert rows[("all", "0")]["successes"] == 2 and rows[("all", "0")]["trials"] == 5
+    assert rows[("all", "1")]["successes"] == 4
+    pairs = {p["family"]: p for p in pair_rows(records, ["0", "1"])}
+    assert (pairs["all"]["a_only"], pairs["all"]["b_only"], pairs["all"]["n"]) == (1, 3, 5)
+    assert pairs["all"]["p_value"] == pytest.approx(mcnemar_exact(1, 3))

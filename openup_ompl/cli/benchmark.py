@@ -51,7 +51,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the benchmark, then print the table and where the outputs are; returns 0."""
-    from openup_ompl.benchmark import default_problems, markdown_table, run_benchmark
+    from openup_ompl.benchmark import default_problems, run_benchmark
+    from openup_ompl.benchmark_report import markdown_table
 
     dir_out(args.out)
     problems = args.problems or default_problems()

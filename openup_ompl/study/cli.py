@@ -11,21 +11,12 @@ __all__ = ["add_parser", "study_command"]
 
 
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
-    """Add ``study`` to a command line's subparsers (``ArgumentParser.add_subparsers()``'s
-    result) and return its parser; flags are checked by the command line's own checkers."""
-    from openup_ompl.cli import _common
+    """Add ``study`` to the command line's subparsers (:mod:`openup_ompl.cli`)."""
+    from openup_ompl.cli._common import count, out_path, planner, scheduler, seed, time_limit
     from openup_ompl.study.errors import DEFAULT_ERRORS
     from openup_ompl.study.families import KINDS, ROBOTS
     from openup_ompl.study.policies import DEFAULT_POLICIES
 
-    count = _common.count
-    types: dict[str, Any] = {
-        "seed": _common.seed,
-        "planner": _common.planner,
-        "time_limit": _common.time_limit,
-        "scheduler": _common.scheduler,
-        "out_path": _common.out_path,
-    }
     study = subparsers.add_parser(
         "study",
         help="where does opening the hand pay? paired trials of scene families, error"
@@ -55,23 +46,19 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     )  # fmt: skip
     study.add_argument("--trials", type=count, default=20, help="paired trials per cell")
     study.add_argument("--chunk", type=count, default=10, help="trials per task (shard file)")
-    study.add_argument("--seed", type=types.get("seed", int), default=1, help="the study's seed")
+    study.add_argument("--seed", type=seed, default=1, help="the study's seed")
     study.add_argument(
-        "--planner", type=types.get("planner", str), default="ikbirrt", metavar="NAME",
+        "--planner", type=planner, default="ikbirrt", metavar="NAME",
         help="planner name",
     )  # fmt: skip
-    study.add_argument(
-        "--time", type=types.get("time_limit", float), default=5.0, help="time limit per plan [s]"
-    )
-    study.add_argument(
-        "--out", type=types.get("out_path", Path), required=True, help="output directory"
-    )
+    study.add_argument("--time", type=time_limit, default=5.0, help="time limit per plan [s]")
+    study.add_argument("--out", type=out_path, required=True, help="output directory")
     study.add_argument(
         "--workers", type=count, default=None,
         help="local task processes at a time (default: the usable cores)",
     )  # fmt: skip
     study.add_argument(
-        "--scheduler", type=types.get("scheduler", str), default=None,
+        "--scheduler", type=scheduler, default=None,
         help="Dask scheduler address (tcp://host:port)",
     )  # fmt: skip
     study.add_argument("--quiet", action="store_true", help="no progress on stderr")
@@ -81,12 +68,12 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 
 def study_command(args: argparse.Namespace) -> int:
     """Run the study and print where its outputs are and its best policy per cell."""
-    from openup_ompl._io import check_dir
+    from openup_ompl.cli._common import dir_out
     from openup_ompl.study.families import parse_families
     from openup_ompl.study.run import StudyOptions
     from openup_ompl.study.sweep import run_study
 
-    check_dir(args.out, "--out")
+    dir_out(args.out)
     families = parse_families(args.family, args.scene)
     options = StudyOptions(
         tuple(families),

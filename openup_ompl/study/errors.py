@@ -7,11 +7,12 @@
   know ``sigma`` (their evidence is that covariance).
 - ``perceived`` or ``perceived-<scale>``: the simulated depth camera of
   :mod:`openup_ompl.perception` (the scene's camera, or its default pose) with its sensor
-  noise model at ``scale`` (1: the Kinect v1's), a superquadric fit and its covariance.
-  A view the perception step refuses (object occluded, cut off, too few points) leaves the
-  trial without an estimate: nothing is planned and every policy fails it (counted as
-  ``not_seen``). The camera's extrinsic error and a depth bias are not modelled:
-  :mod:`openup_ompl.perception` offers neither yet.
+  noise model at ``scale`` (1: the Kinect v1's), its default calibration errors
+  (:class:`~openup_ompl.perception.extrinsic.PerceptionOptions`: the camera's extrinsic
+  pose off by 5 mm and 0.5 deg, a 2 mm depth bias, drawn per view), the fit and its
+  covariance. A view the perception step refuses (object occluded, cut off, too few
+  points) leaves the trial without an estimate: nothing is planned and every policy fails
+  it (counted as ``not_seen``).
 
 The plan is made at the believed pose (the grasp moves with the object:
 :func:`~openup_ompl.perception.perceive.at_estimate`); execution is always against the
@@ -143,11 +144,7 @@ def _perceived(truth: Problem, source: ErrorSource, rng: np.random.Generator) ->
         seen = perceive(truth, noise=NoiseOptions(scale=source.noise), rng=rng)
     except PerceptionError as error:
         return Belief(None, None, refusal=f"{type(error).__name__}: {error}")
-    except AssertionError:
-        if truth.object.shape != "mesh":
-            raise
-        # This version's pose estimate knows boxes, cylinders and spheres only.
-        return Belief(None, None, refusal="MeshNotPerceived: no pose estimate of a mesh")
+
     believed = at_estimate(truth, seen.pose)
     fit = seen.fit
     evidence = Evidence(

@@ -7,13 +7,22 @@ from the side along +x, the thumb on -y), with the object placed within a few ce
 of the template's and the whole set-up turned by a small yaw about the object's vertical.
 Every range is a module constant, so the results page can quote it.
 
-Kinds (:data:`KINDS`): ``can`` (isolated, the baseline), ``clutter`` (2-4 neighbours at
-gaps of 0.5-4 cm, the first one beside the closing direction), ``tall`` (a 0.2 m bottle of
+Kinds (:data:`KINDS`): ``can`` (isolated, the baseline), ``clutter`` (2-4 free
+neighbours, the first one beside the closing direction), ``tall`` (a 0.2 m bottle of
 0.1 kg), ``box`` (yaw matters), ``thin`` (the Panda: a plank on edge; the LWA3-SDH: a
-stick), ``wall`` (a wall beside the object), ``shelf`` (walls on both sides and behind)
-and ``mesh`` (a lathed bottle as a triangle mesh; needs ``shape = "mesh"`` in
-:mod:`openup_ompl.scene`). An instance whose fingers would already touch a neighbour or
-wall with the hand at ``u = 0`` is redrawn (:func:`instance_problem`).
+stick), ``wall`` (a fixed board beside the object), ``shelf`` (boards on both sides and
+behind) and ``mesh`` (a bottle of revolution written as an OBJ file).
+
+Gaps (:data:`GAP_RANGE`) count from the farther of the object's surface and the
+``u = 0`` hand: its fingers along the whole straight approach (the law's opening ``b``)
+and closing from ``c`` to the closed configuration with nothing in the way; on the
+LWA3-SDH's thumb side also the thumb pushed back to its joint limit, as the squeezed
+object pushes it in physics (:meth:`~openup_ompl.study.geometry.HandSweep.reach`). So the
+baseline ``u = 0`` never meets a neighbour when the pose is known, and opening wider
+(``u > 0``) spends the gap. The Panda's boards and neighbours end level with the object's
+top: its 0.2 m wide palm passes just above it. An instance whose fingers touch a neighbour
+or board anywhere on the ``u = 0`` approach, or whose neighbours overlap, is redrawn
+(:func:`instance_problem`).
 """
 
 from __future__ import annotations

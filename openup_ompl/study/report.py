@@ -2,13 +2,17 @@
 
 ``uncertainty_map.csv``, one row per ``(family, error, policy)`` cell (:data:`MAP_COLUMNS`):
 trials, trials held (``successes``), the rate and its Wilson 95 % interval, trials where
-a neighbour was disturbed (``NA`` while the rollout does not report it), plan failures,
-views perception refused (``not_seen``), trials where a robot link touched an obstacle
-and the mean ``u`` of the planned trials.
+a neighbour was disturbed (moved > 2 cm or tipped; ``NA`` when the rollout does not
+report it) and those held with no neighbour disturbed, trials where the robot touched a
+movable neighbour, plan failures, views perception refused (``not_seen``), trials where
+a robot link touched a fixed obstacle and the mean ``u`` of the planned trials.
 
 ``uncertainty_pairs.csv``, one row per cell and pair of policies (:data:`PAIR_COLUMNS`):
 the paired trials ``n``, those only A held and only B held, and the exact McNemar test's
 two-sided p-value (:func:`~openup_ompl.study.stats.mcnemar_exact`).
+
+Both add pooled rows (family ``all``: every family per error; family and error ``all``:
+everything) when the study has more than one family.
 """
 
 from __future__ import annotations
@@ -24,21 +28,45 @@ import numpy as np
 from openup_ompl._io import make_dir
 from openup_ompl.study.stats import mcnemar_exact, wilson_interval
 
-__all__ = ["MAP_COLUMNS", "PAIR_COLUMNS", "pair_rows", "plot_study", "map_rows", "write_rows"]
+__all__ = [
+    "MAP_COLUMNS",
+    "PAIR_COLUMNS",
+    "POOLED",
+    "map_rows",
+    "pair_rows",
+    "plot_study",
+    "write_rows",
+]
 
 MAP_COLUMNS = (
     "family", "error", "policy", "trials", "successes", "rate", "ci_low", "ci_high",
-    "disturbed", "plan_failures", "not_seen", "obstacle_contacts", "mean_u",
+    "disturbed", "held_undisturbed", "neighbour_touched", "plan_failures", "not_seen",
+    "obstacle_contacts", "mean_u",
 )  # fmt: skip
 PAIR_COLUMNS = ("family", "error", "policy_a", "policy_b", "n", "a_only", "b_only", "p_value")
 
 
+#: The family and error names of pooled rows.
+POOLED = "all"
+
+
 def _cells(records: Sequence[dict[str, Any]]) -> dict[tuple[str, str], list[dict[str, Any]]]:
-    """The trials of each ``(family, error)``, in trial order."""
+    """The trials of each ``(family, error)``, in trial order; then, with more than one
+    family, every family pooled per error (family :data:`POOLED`), and with more than one
+    error as well, everything pooled (``(POOLED, POOLED)``). Pooled trials stay paired:
+    each is one trial of every policy."""
     cells: dict[tuple[str, str], list[dict[str, Any]]] = {}
     for record in records:
         cells.setdefault((record["family"], record["error"]), []).extend(record["trials"])
-    return {key: sorted(trials, key=lambda t: t["trial"]) for key, trials in cells.items()}
+    ordered = {key: sorted(trials, key=lambda t: t["trial"]) for key, trials in cells.items()}
+    families = {family for family, _ in ordered}
+    errors = list(dict.fromkeys(error for _, error in ordered))
+    if len(families) > 1:
+        for error in errors:
+            ordered[(POOLED, error)] = [t for (_, e), ts in cells.items() if e == error for t in ts]
+        if len(errors) > 1:
+            ordered[(POOLED, POOLED)] = [t for ts in cells.values() for t in ts]
+    return ordered
 
 
 def map_rows(records: Sequence[dict[str, Any]], policies: Sequence[str]) -> list[dict[str, Any]]:
@@ -62,6 +90,12 @@ def map_rows(records: Sequence[dict[str, Any]], policies: Sequence[str]) -> list
                     "ci_low": low,
                     "ci_high": high,
                     "disturbed": sum(bool(d) for d in known) if known else "NA",
+                    "held_undisturbed": sum(
+                        bool(r["held"]) and r.get("disturbed") is False for r in results
+                    )
+                    if known
+                    else "NA",
+                    "neighbour_touched": sum(bool(r.get("neighbour_touched")) for r in results),
                     "plan_failures": sum(r["cause"] == "plan failed" for r in results),
                     "not_seen": sum(r["cause"] == "not seen" for r in results),
                     "obstacle_contacts": sum(bool(r.get("obstacle_contact")) for r in results),
@@ -121,7 +155,7 @@ def plot_study(
     from openup_ompl.viz._mpl import _pyplot, _save
 
     plt = _pyplot()
-    families = list(dict.fromkeys(r["family"] for r in rows))
+    families = list(dict.fromkeys(r["family"] for r in rows if r["error"] != POOLED))
     policies = list(dict.fromkeys(r["policy"] for r in rows))
     columns = min(4, len(families))
     lines = -(-len(families) // columns)
