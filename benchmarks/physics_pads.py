@@ -48,13 +48,64 @@ def interval(k: int, n: int) -> str:
     return f"{k}/{n} [{ci.low * 100:.0f}, {ci.high * 100:.0f}] %"
 
 
+def figure(path: str) -> None:
+    """Draw the Panda's left finger's contact geometry: its URDF fingertip box and the
+    robot file's pads, from the front (x-z, looking along the closing axis) and from the
+    side (y-z), in the finger's frame [mm]."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Rectangle
+
+    from openup_ompl.robot_file import RobotSpec, find_robot_file
+
+    pads = [p for p in RobotSpec.from_file(find_robot_file("panda")).pads
+            if p.link == "panda_leftfinger"]  # fmt: skip
+    tip = ([0.0, 7.58, 45.25], [17.5, 15.2, 18.5])  # the URDF's fingertip box [mm]
+    fig, axes = plt.subplots(1, 2, figsize=(8, 4.2))
+    for ax, (a, b), title in zip(
+        axes,
+        ((0, 2), (1, 2)),
+        ("front (x, z): the pads' faces", "side (y, z): the can at y < 0"),
+        strict=True,
+    ):
+        centre, size = tip
+        ax.add_patch(Rectangle((centre[a] - size[a] / 2, centre[b] - size[b] / 2), size[a],
+                               size[b], fill=False, ls="--", lw=1.5, ec="0.3",
+                               label="URDF fingertip box (obstacles only)"))  # fmt: skip
+        names = ["pad box", "corner boxes (touch first)", None, None, None,
+                 "fingertip behind, recessed 4 mm"]  # fmt: skip
+        colours = ["C1", "C0", "C0", "C0", "C0", "C2"]
+        for k in (5, 0, 1, 2, 3, 4):  # the recessed fingertip first, the corners on top
+            pad, name, colour = pads[k], names[k], colours[k]
+            c, s = pad.pose[:3] * 1e3, pad.size * 1e3
+            corner = (c[a] - s[a] / 2, c[b] - s[b] / 2)
+            alpha = 0.25 if k == 5 else 0.7
+            ax.add_patch(Rectangle(corner, s[a], s[b], alpha=alpha, color=colour, label=name))
+        ax.set_xlim(-14, 14) if a == 0 else ax.set_xlim(-6, 20)
+        ax.set_ylim(58, 32)
+        ax.set_aspect("equal")
+        ax.set_xlabel("x [mm]" if a == 0 else "y [mm] (the finger's inner face at 0)")
+        ax.set_ylabel("z [mm] (along the finger)")
+        ax.set_title(title, fontsize=10)
+    fig.legend(*axes[0].get_legend_handles_labels(), fontsize=8, loc="lower center", ncol=2)
+    fig.suptitle("Panda left finger: physics contact pads (robots/panda.toml) and the URDF box")
+    fig.tight_layout(rect=(0, 0.12, 1, 1))
+    fig.savefig(path, dpi=110)
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scene", default=str(SCENE))
     parser.add_argument("--seeds", type=int, default=3, help="plans (seeds 1..N)")
     parser.add_argument("--deltas", type=float, nargs="+", default=[0.01, 0.015])
     parser.add_argument("--json", default=None, help="also write the trials as JSON here")
+    parser.add_argument("--figure", default=None, help="only draw the Panda's pads to this PNG")
     args = parser.parse_args()
+    if args.figure:
+        figure(args.figure)
+        return 0
     problem = ou.load_scene(args.scene)
     setup = ou.GraspPlanningSetup(problem)
     direction = across(problem)

@@ -4,7 +4,8 @@ physics_regression.json``): the rollout's refactors and speed-ups must reproduce
 The plans' waypoints are stored (not re-planned: a planner change does not move them) and
 densified by :meth:`~openup_ompl.GraspPlanningSetup.densify`; the world is rebuilt from the
 shipped scene and robot. ``python tests/physics_regression.py``
-re-plans and re-records (only when a change of the verdicts is intended).
+re-plans and re-records (only when a change of the verdicts is intended); ``--trials``
+does so for the throughput set.
 """
 
 from __future__ import annotations
@@ -31,6 +32,24 @@ CASES: list[tuple[str, int, list[list[float]]]] = [
     ]),
     ("ur5_allegro_can", 1, [[0.0, 0.0, 0.0], [0.01, 0.0, 0.0], [0.0, -0.015, 0.0]]),
 ]  # fmt: skip
+
+#: The sweep's 21 perturbations: the nominal pose, then +-x and +-y at five distances [m].
+SWEEP = [[0.0, 0.0, 0.0]] + [
+    [sx * d, sy * d, 0.0]
+    for d in (0.005, 0.01, 0.015, 0.02, 0.03)
+    for sx, sy in ((1, 0), (-1, 0), (0, 1), (0, -1))
+]
+#: The throughput set (``tests/data/physics_trials.json``, 126 trials): six plans at the
+#: sweep's perturbations; the bottle scene has a movable cup beside the bottle.
+TRIAL_CASES: list[tuple[str, int, list[list[float]]]] = [
+    ("panda_can", 2, SWEEP),
+    ("panda_can", 3, SWEEP),
+    ("lwa3_sdh_can", 2, SWEEP),
+    ("ur5_allegro_can", 2, SWEEP),
+    ("panda_bottle", 1, SWEEP),
+    ("panda_bottle", 2, SWEEP),
+]
+TRIALS = ROOT / "tests" / "data" / "physics_trials.json"
 
 #: Numbers of a record compared (path into the record's dict).
 KEYS = (
@@ -88,21 +107,23 @@ def summary(record: dict[str, Any]) -> dict[str, Any]:
         out[".".join(key)] = value
     first = record["first_contact"]
     out["first_contact"] = None if first is None else [first["link"], first["phase"]]
+    if record.get("neighbours"):
+        out["neighbours"] = [[n["name"], n["moved"], n["tipped"]] for n in record["neighbours"]]
     return out
 
 
-def load() -> list[dict[str, Any]]:
-    """The stored cases."""
-    return json.loads(DATA.read_text())["cases"]
+def load(path: Path = DATA) -> list[dict[str, Any]]:
+    """The stored cases (of the regression file, or of ``path``)."""
+    return json.loads(path.read_text())["cases"]
 
 
-def record_all() -> None:
+def record_all(specs: list[tuple[str, int, list[list[float]]]] = CASES, path: Path = DATA) -> None:
     """Plan each case and record its verdicts (rewrites the data file)."""
     import openup_ompl as ou
     from openup_ompl.physics import Rollout
 
     cases = []
-    for scene, seed, offsets in CASES:
+    for scene, seed, offsets in specs:
         problem = ou.load_scene(ROOT / "scenes" / f"{scene}.toml")
         plan = ou.GraspPlanningSetup(problem).solve(time_limit=10.0, planner="ikbirrt", seed=seed)
         data = plan.to_dict()
@@ -117,8 +138,11 @@ def record_all() -> None:
             case["trials"].append({"offset": offset, **summary(record)})
             print(scene, offset, record["verdict"], file=sys.stderr)
         cases.append(case)
-    DATA.write_text(json.dumps({"cases": cases}, indent=1) + "\n")
+    path.write_text(json.dumps({"cases": cases}, indent=1) + "\n")
 
 
 if __name__ == "__main__":
-    record_all()
+    if sys.argv[1:] == ["--trials"]:
+        record_all(TRIAL_CASES, TRIALS)
+    else:
+        record_all()

@@ -91,3 +91,27 @@ def test_a_scene_without_movable_obstacles_reports_no_disturbance():
     record = Rollout(regression.plan_contents(case)).run(frames=False)
     assert record.neighbours == []
     assert not (record.neighbour_moved or record.neighbour_tipped or record.neighbour_touched)
+
+
+def test_a_world_is_compiled_once_and_its_copy_takes_new_poses(contents, monkeypatch):
+    """Two rollouts of one scene compile once (the second gets a copy of the model: a
+    change to one does not reach the other); moving the far jar in the second plan's
+    scene puts it at its new pose from the start."""
+    import copy
+
+    from openup_ompl.physics import reuse
+
+    reuse.clear_cache()
+    compiled = []
+    make = reuse.make_world
+    monkeypatch.setattr(reuse, "make_world", lambda *a: compiled.append(1) or make(*a))
+    first = Rollout(contents)
+    moved = copy.deepcopy(contents)
+    moved["scene"]["obstacles"][-1]["pose"] = [0.5, -0.35, 0.05, 0.0, 0.0, 0.0, 1.0]
+    second = Rollout(moved)
+    assert len(compiled) == 1
+    assert first.world.model is not second.world.model
+    first.world.model.opt.timestep = 0.004
+    assert second.world.model.opt.timestep == pytest.approx(0.002)
+    record = second.run(frames=True)
+    assert record.frames["neighbours"]["jar"][0][:3] == pytest.approx([0.5, -0.35, 0.05], abs=1e-3)

@@ -15,7 +15,8 @@ import pytest
 
 import openup_ompl as ou
 from openup_ompl.physics import PhysicsOptions, build_world
-from openup_ompl.physics.world import PAD, _add_pads
+from openup_ompl.physics.pads import PAD
+from openup_ompl.physics.pads import add_pads as _add_pads
 from openup_ompl.robot_file import PadSpec, RobotSpec, find_robot_file
 
 mujoco = pytest.importorskip("mujoco")

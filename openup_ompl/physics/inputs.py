@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from openup_ompl.exceptions import ConfigError
-from openup_ompl.physics.world import RobotTable, robot_spec
+from openup_ompl.physics.robot_table import RobotTable, robot_spec
 from openup_ompl.scene import Shape
 
 if TYPE_CHECKING:

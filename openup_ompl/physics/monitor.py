@@ -22,6 +22,33 @@ UNSTABLE = (
 )
 
 
+#: Classes of a contacting geom pair (:func:`_pair_classes`): none of interest, the
+#: object on a fixed obstacle, a robot link on the object, on a fixed obstacle, on a
+#: neighbour.
+OTHER, PRESSED, GRIPPED, HIT, NUDGED = 0, 1, 2, 3, 4
+#: Steps between the hold's rest checks (early end), how many in a row must find the
+#: object and the neighbours at rest, and the speeds below which they are [m/s, rad/s].
+REST_PERIOD = 25
+REST_CHECKS = 4
+REST_SPEED = 1e-3
+REST_SPIN = 1e-2
+
+
+def _pair_classes(kinds: np.ndarray) -> np.ndarray:
+    """The class of every ordered geom pair ``(a, b)``, flattened at ``a * ngeom + b``."""
+    first, second = kinds[:, None], kinds[None, :]
+
+    def either(a: int, b: int) -> np.ndarray:
+        return ((first == a) & (second == b)) | ((first == b) & (second == a))
+
+    table = np.full((kinds.size, kinds.size), OTHER, dtype=np.int8)
+    table[either(OBJECT, OBSTACLE)] = PRESSED
+    table[either(OBJECT, ROBOT)] = GRIPPED
+    table[either(ROBOT, OBSTACLE)] = HIT
+    table[either(ROBOT, NEIGHBOUR)] = NUDGED
+    return table.ravel()
+
+
 def transform(sim: Any, body: int) -> np.ndarray:
     """The ``(4, 4)`` world transform of a body."""
     t = np.eye(4)
@@ -43,6 +70,7 @@ class Monitor:
         start_distance: The plan's start palm distance [m] (0: ``d`` not computed).
         frame_period: Steps between kept frames, or 0 for none.
         messages: MuJoCo's warnings collected while it runs.
+        early_end: End the rollout once its verdict is certain (:attr:`ended`).
 
     Attributes:
         phase: The running phase's name.
@@ -56,6 +84,9 @@ class Monitor:
         sunk: The phase in which the object went below ``floor``, or ``None``.
         top: The object's highest z [m] over the lift and hold.
         kept: The frames ``{"q", "object", "phase", "neighbours"}``.
+        touch_step: The step at which :attr:`touched` became true, or ``None``.
+        ended: Why and when the rollout ended early ``{"reason", "phase", "time_s"}``,
+            or ``None``: once set, the phases stop stepping.
     """
 
     def __init__(
@@ -68,12 +99,14 @@ class Monitor:
         start_distance: float,
         frame_period: int,
         messages: list[str],
+        early_end: bool = False,
     ) -> None:
         self.world, self.sim, self.ctrl = world, sim, ctrl
         self.dt = float(world.model.opt.timestep)
         self.floor, self.goal, self.start_distance = floor, goal, start_distance
         self.period, self.messages = frame_period, messages
         self.phase = "settle"
+        self.phase_start = 0  # the step count when the phase began
         self.steps = 0
         self.touched = False
         self.first: dict[str, Any] | None = None
@@ -85,6 +118,15 @@ class Monitor:
         self.sunk: str | None = None
         self.top = -math.inf
         self.kept: dict[str, Any] = {"q": [], "object": [], "phase": [], "neighbours": {}}
+        self.touch_step: int | None = None
+        self.ended: dict[str, Any] | None = None
+        self.early_end = early_end
+        model = world.model
+        self._ngeom = int(model.ngeom)
+        self._classes = _pair_classes(world.geom_kind)
+        self._seen = np.zeros(self._ngeom * self._ngeom, dtype=bool)
+        self._in_order = bool(np.array_equal(world.actuator, np.arange(model.nu)))
+        self._rest_checks = 0
 
     @property
     def time(self) -> float:
@@ -96,7 +138,10 @@ class Monitor:
         import mujoco
 
         world, sim = self.world, self.sim
-        sim.ctrl[world.actuator] = self.ctrl
+        if self._in_order:
+            sim.ctrl[:] = self.ctrl
+        else:
+            sim.ctrl[world.actuator] = self.ctrl
         mujoco.mj_step(world.model, sim)
         self.steps += 1
         height = sim.qpos[world.object_qpos + 2]
@@ -105,41 +150,65 @@ class Monitor:
         if self.phase in ("lift", "hold") and height > self.top:
             self.top = float(height)
         if sim.ncon:
-            self._contacts()
+            self._contacts(sim.ncon)
         if self.period and self.steps % self.period == 0:
             self._keep()
+        if self.early_end and self.phase == "hold" and self.steps % REST_PERIOD == 0:
+            self._check_rest()
 
     def run_for(self, seconds: float) -> None:
-        """Step for ``seconds`` [s] of simulated time at constant targets."""
+        """Step for ``seconds`` [s] of simulated time at constant targets (less if the
+        rollout ends early)."""
         for _ in range(round(seconds / self.dt)):
+            if self.ended is not None:
+                return
             self.step()
 
-    def _contacts(self) -> None:
-        """Record the step's contacts: penetrations, and each first touch."""
-        sim, kinds = self.sim, self.world.geom_kind
-        pairs = kinds[sim.contact.geom[: sim.ncon]]
-        depth = -sim.contact.dist[: sim.ncon]
-        pressed = ((pairs == OBJECT) & (pairs[:, ::-1] == OBSTACLE)).any(axis=1)
-        if pressed.any():
-            deepest = float(depth[pressed].max())
+    def _contacts(self, ncon: int) -> None:
+        """Record the step's contacts: penetrations, and each first touch. A geom pair's
+        class comes from one table lookup; only contacts that can still add a first touch
+        are looked at one by one (in MuJoCo's order, as every one was before)."""
+        contact = self.sim.contact
+        geom = contact.geom
+        ids = geom[:, 0] * self._ngeom + geom[:, 1]
+        classes = self._classes[ids]
+        count = np.bincount(classes, minlength=5)
+        if count[0] == ncon:
+            return
+        if count[PRESSED]:
+            # The deepest penetration: -min(dist) is max(-dist) to the last bit.
+            deepest = -float(contact.dist[classes == PRESSED].min())
             if deepest > self.pressed:
                 self.pressed, self.pressed_phase = deepest, self.phase
-        gripped = ((pairs == OBJECT) & (pairs[:, ::-1] == ROBOT)).any(axis=1)
-        if gripped.any():
-            self.gripped = max(self.gripped, float(depth[gripped].max()))
-        for i in np.flatnonzero((pairs == ROBOT).any(axis=1)):
-            g = sim.contact.geom[i]
+        pending = self.first is None or (not self.touched and self.phase in ("settle", "reach"))
+        gripped = None
+        if count[GRIPPED]:
+            gripped = classes == GRIPPED
+            self.gripped = max(self.gripped, -float(contact.dist[gripped].min()))
+        if count[HIT] + count[NUDGED]:
+            relevant = (classes >= HIT) & ~self._seen[ids]
+            if pending and gripped is not None:
+                relevant |= gripped
+        elif pending and gripped is not None:
+            relevant = gripped
+        else:
+            return
+        kinds, links = self.world.geom_kind, self.world.geom_link
+        for i in np.flatnonzero(relevant):
+            g = geom[i]
             robot_first = kinds[g[0]] == ROBOT
             other = int(g[1] if robot_first else g[0])
-            self._touch(self.world.geom_link[int(g[0] if robot_first else g[1])], other)
+            self._touch(links[int(g[0] if robot_first else g[1])], other)
+            if classes[i] >= HIT:
+                self._seen[ids[i]] = True
 
     def _touch(self, link: str, other: int) -> None:
         """A robot ``link`` touches geom ``other``: note the first touch of its kind."""
         kind, name = self.world.geom_kind[other], self.world.geom_link[other]
         time, phase = self.time, self.phase
         if kind == OBJECT:
-            if phase in ("settle", "reach"):
-                self.touched = True
+            if phase in ("settle", "reach") and not self.touched:
+                self.touched, self.touch_step = True, self.steps
             if self.first is None:
                 palm = self.sim.xpos[self.world.palm_body]
                 d = (
@@ -157,6 +226,29 @@ class Monitor:
                 self.obstacles[key] = {
                     "link": link, "obstacle": name, "time_s": time, "phase": phase
                 }  # fmt: skip
+                if self.early_end and not self.world.neighbours and self.ended is None:
+                    # The first failure cause in order: nothing later changes the verdict
+                    # (with neighbours, their disturbance is still to come).
+                    self.ended = {"reason": "obstacle contact", "phase": phase, "time_s": time}
+
+    def _check_rest(self) -> None:
+        """During the hold: no robot link touches the object, and the object and every
+        neighbour are at rest (:data:`REST_SPEED`) for :data:`REST_CHECKS` checks in a
+        row. The robot holds still at the top, so nothing moves again: the verdict
+        (``dropped`` or ``no contact``, or a cause before them) is certain."""
+        sim, world = self.sim, self.world
+        geom = sim.contact.geom[: sim.ncon]
+        classes = self._classes[geom[:, 0] * self._ngeom + geom[:, 1]]
+        bodies = [world.object_dof, *world.neighbour_dof]
+        still = not (classes == GRIPPED).any() and all(
+            float(np.abs(sim.qvel[d : d + 3]).max()) < REST_SPEED
+            and float(np.abs(sim.qvel[d + 3 : d + 6]).max()) < REST_SPIN
+            for d in bodies
+        )
+        self._rest_checks = self._rest_checks + 1 if still else 0
+        if self._rest_checks >= REST_CHECKS:
+            self.ended = {"reason": "object left the hand, at rest", "phase": self.phase,
+                          "time_s": self.time}  # fmt: skip
 
     def _keep(self) -> None:
         """Keep a frame: the joints, the object's pose and every neighbour's."""

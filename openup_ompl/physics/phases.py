@@ -12,10 +12,12 @@ import math
 import numpy as np
 
 from openup_ompl.physics.monitor import Monitor
-from openup_ompl.physics.trajectory import Timed
+from openup_ompl.physics.trajectory import Timed, sample
 from openup_ompl.physics.world import World
 
-__all__ = ["PHASE_ORDER", "Closing", "Lift", "Reach", "hold", "settle"]
+__all__ = [
+    "PHASE_ORDER", "Closing", "Lift", "LiftTargets", "Reach", "ReachTargets", "hold", "settle",
+]  # fmt: skip
 
 #: The phases' names, in order.
 PHASE_ORDER = ("settle", "reach", "close", "squeeze", "lift", "hold")
@@ -25,47 +27,78 @@ REACH_TAIL = 0.1
 
 def settle(monitor: Monitor, seconds: float) -> float:
     """The object rests where it really is, the robot at the plan's first row."""
-    monitor.phase = "settle"
+    monitor.phase, monitor.phase_start = "settle", monitor.steps
     monitor.run_for(seconds)
-    return seconds
+    return _duration(monitor, seconds, round(seconds / monitor.dt))
+
+
+def _duration(monitor: Monitor, nominal: float, steps: int) -> float:
+    """A phase's duration [s]: ``nominal``, or the time it ran if the rollout ended in it."""
+    if monitor.ended is None or monitor.ended["phase"] != monitor.phase:
+        return nominal
+    return (
+        min(steps, round(monitor.ended["time_s"] / monitor.dt) - monitor.phase_start) * monitor.dt
+    )
+
+
+class ReachTargets:
+    """The reach's actuator targets, the same for every trial of a plan: the timed path
+    at each step and the commands with velocity feed-forward,
+    ``kp (q* + kv/kp v* - q) - kv v = kp (q* - q) + kv (v* - v)`` (no lag of ``kv v / kp``
+    behind a moving target).
+
+    Args:
+        timed: The timed path.
+        lead: ``kv / kp`` of each joint's actuator [s].
+        dt: The timestep [s].
+    """
+
+    def __init__(self, timed: Timed, lead: np.ndarray, dt: float) -> None:
+        self.steps = math.ceil(timed.duration / dt) + round(REACH_TAIL / dt)
+        # The path at (k + 1) dt, k = 0 .. steps: step k's target and the next one.
+        self.targets = sample(timed, np.arange(1, self.steps + 2) * dt)
+        ahead, desired = self.targets[1:], self.targets[:-1]
+        self.commands = (ahead - desired) * (lead / dt) + desired
 
 
 class Reach:
-    """The plan's rows as timed (:func:`~openup_ompl.physics.trajectory.time_path`), with
-    velocity feed-forward through the targets.
+    """The plan's rows as timed (:func:`~openup_ompl.physics.trajectory.time_path`).
 
     Attributes:
         arm_error: Largest arm tracking error [rad or m].
         hand_error: Largest hand tracking error before the hand touched the object.
     """
 
-    def __init__(self, timed: Timed, lead: np.ndarray) -> None:
-        self.timed, self.lead = timed, lead
+    def __init__(self, targets: ReachTargets) -> None:
+        self.plan = targets
         self.arm_error = 0.0
         self.hand_error = 0.0
 
     def run(self, monitor: Monitor) -> float:
         """Drive the targets along the timed path; returns the duration [s]."""
-        monitor.phase = "reach"
-        world, sim, ctrl, dt = monitor.world, monitor.sim, monitor.ctrl, monitor.dt
-        steps = math.ceil(self.timed.duration / dt) + round(REACH_TAIL / dt)
-        desired = np.empty_like(ctrl)
-        ahead = np.empty_like(ctrl)
-        arm, hand = world.arm, world.hand
-        for k in range(steps):
-            self.timed.at((k + 1) * dt, desired)
-            self.timed.at((k + 2) * dt, ahead)
-            # Velocity feed-forward through the target: kp (q* + kv/kp v* - q) - kv v
-            # = kp (q* - q) + kv (v* - v), no lag of kv v / kp behind a moving target.
-            np.multiply(ahead - desired, self.lead / dt, out=ctrl)
-            ctrl += desired
+        monitor.phase, monitor.phase_start = "reach", monitor.steps
+        world, sim, ctrl = monitor.world, monitor.sim, monitor.ctrl
+        plan, qpos = self.plan, world.qpos
+        log = np.empty((plan.steps, qpos.size))
+        done = 0
+        for k in range(plan.steps):
+            if monitor.ended is not None:
+                break
+            ctrl[:] = plan.commands[k]
             monitor.step()
-            error = np.abs(sim.qpos[world.qpos] - desired)
-            self.arm_error = max(self.arm_error, float(error[arm].max()))
-            if hand.size and not monitor.touched:
-                self.hand_error = max(self.hand_error, float(error[hand].max()))
-        ctrl[:] = desired
-        return steps * dt
+            log[k] = sim.qpos[qpos]
+            done = k + 1
+        if done:
+            error = np.abs(log[:done] - plan.targets[:done])
+            self.arm_error = max(0.0, float(error[:, world.arm].max()))
+            if world.hand.size:
+                # Steps after which the hand had not yet touched the object.
+                touch = monitor.touch_step
+                free = done if touch is None else max(0, min(done, touch - monitor.phase_start - 1))
+                if free:
+                    self.hand_error = max(0.0, float(error[:free, world.hand].max()))
+            ctrl[:] = plan.targets[done - 1]
+        return _duration(monitor, plan.steps * monitor.dt, plan.steps)
 
 
 class Closing:
@@ -97,42 +130,50 @@ class Closing:
 
     def close(self, monitor: Monitor) -> float:
         """Move the targets to the closed configuration; returns the duration [s]."""
-        monitor.phase = "close"
+        monitor.phase, monitor.phase_start = "close", monitor.steps
         steps = math.ceil(self.duration / monitor.dt)
         for k in range(steps):
+            if monitor.ended is not None:
+                break
             self._targets(monitor.ctrl, np.minimum(self.span, self.rates * (k + 1) * monitor.dt))
             monitor.step()
-        return steps * monitor.dt
+        return _duration(monitor, steps * monitor.dt, steps)
 
     def squeeze(self, monitor: Monitor, seconds: float) -> float:
         """Hold the closed targets for ``seconds`` [s]: each joint presses on what
         stopped it. Returns the duration [s]."""
-        monitor.phase = "squeeze"
+        monitor.phase, monitor.phase_start = "squeeze", monitor.steps
         steps = round(seconds / monitor.dt)
         for _ in range(steps):
+            if monitor.ended is not None:
+                break
             self._targets(monitor.ctrl, self.span)
             monitor.step()
-        return steps * monitor.dt
+        return _duration(monitor, steps * monitor.dt, steps)
 
 
-class Lift:
-    """The palm straight up along the lift's IK rows (equal palm rises) at a smoothstep in
-    time, starting and stopping at rest, with velocity feed-forward; the hand's targets
-    held.
+class LiftTargets:
+    """The lift's arm targets, the same for every trial of a plan: the IK rows (equal palm
+    rises) at a smoothstep in time, starting and stopping at rest, and the commands with
+    velocity feed-forward.
 
     Args:
         rows: The lift's configurations (:func:`~openup_ompl.physics.targets.lift_rows`).
         arm: Indices of the arm joints.
         lead: ``kv / kp`` of the arm joints' actuators [s].
         steps: Simulation steps of the lift.
-
-    Attributes:
-        arm_error: Largest arm tracking error [rad or m].
+        dt: The timestep [s].
     """
 
-    def __init__(self, rows: np.ndarray, arm: np.ndarray, lead: np.ndarray, steps: int) -> None:
-        self.rows, self.arm, self.lead, self.steps = rows, arm, lead, steps
-        self.arm_error = 0.0
+    def __init__(
+        self, rows: np.ndarray, arm: np.ndarray, lead: np.ndarray, steps: int, dt: float
+    ) -> None:
+        self.rows, self.arm, self.steps = rows, arm, steps
+        at = np.array([self.at(k) for k in range(steps + 2)])
+        self.targets = at[1:-1]  # step k's target: at(k + 1)
+        following = at[2:]
+        self.commands = self.targets + lead * (following - self.targets) / dt
+        self.top = at[steps]
 
     def at(self, k: int) -> np.ndarray:
         """Arm target at lift step ``k``."""
@@ -144,22 +185,41 @@ class Lift:
         j = min(i + 1, last)
         return self.rows[i, self.arm] + a * (self.rows[j, self.arm] - self.rows[i, self.arm])
 
+
+class Lift:
+    """The palm straight up (:class:`LiftTargets`), the hand's targets held.
+
+    Attributes:
+        arm_error: Largest arm tracking error [rad or m].
+    """
+
+    def __init__(self, targets: LiftTargets) -> None:
+        self.plan = targets
+        self.arm_error = 0.0
+
     def run(self, monitor: Monitor) -> float:
         """Drive the arm up; returns the duration [s]. The targets end at the top."""
-        monitor.phase = "lift"
-        world, sim, ctrl, dt = monitor.world, monitor.sim, monitor.ctrl, monitor.dt
-        for k in range(self.steps):
-            target, following = self.at(k + 1), self.at(k + 2)
-            ctrl[self.arm] = target + self.lead * (following - target) / dt
+        monitor.phase, monitor.phase_start = "lift", monitor.steps
+        world, sim, ctrl, plan = monitor.world, monitor.sim, monitor.ctrl, self.plan
+        qpos = world.qpos[plan.arm]
+        log = np.empty((plan.steps, qpos.size))
+        done = 0
+        for k in range(plan.steps):
+            if monitor.ended is not None:
+                break
+            ctrl[plan.arm] = plan.commands[k]
             monitor.step()
-            error = np.abs(sim.qpos[world.qpos[self.arm]] - target)
-            self.arm_error = max(self.arm_error, float(error.max()))
-        ctrl[self.arm] = self.at(self.steps)
-        return self.steps * dt
+            log[k] = sim.qpos[qpos]
+            done = k + 1
+        if done:
+            error = np.abs(log[:done] - plan.targets[:done])
+            self.arm_error = max(0.0, float(error.max()))
+        ctrl[plan.arm] = plan.top
+        return _duration(monitor, plan.steps * monitor.dt, plan.steps)
 
 
 def hold(monitor: Monitor, seconds: float) -> float:
     """The targets stay at the top for ``seconds`` [s]."""
-    monitor.phase = "hold"
+    monitor.phase, monitor.phase_start = "hold", monitor.steps
     monitor.run_for(seconds)
-    return seconds
+    return _duration(monitor, seconds, round(seconds / monitor.dt))

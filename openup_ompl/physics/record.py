@@ -81,6 +81,10 @@ class ExecutionRecord:
         plan: What was executed: ``{"robot", "planner", "seed", "u", "rows"}``.
         options: The :class:`~openup_ompl.physics.options.PhysicsOptions` used.
         steps: Simulation steps.
+        ended_early: ``None``, or why and when the rollout ended once its verdict was
+            certain (``PhysicsOptions.early_end``): ``{"reason", "phase", "time_s"}``;
+            the phases after that one are absent from :attr:`phases`, and the numbers are
+            those at that time.
         neighbours: Per movable obstacle (``movable = true``: a free body in physics), in
             the scene's order, how the rollout disturbed it from its pose at the end of
             the settle to the end of the rollout: ``{"name", "moved_mm"`` (its centre's
@@ -126,6 +130,7 @@ class ExecutionRecord:
     neighbour_moved: bool = False
     neighbour_tipped: bool = False
     neighbour_touched: bool = False
+    ended_early: dict[str, Any] | None = None
 
     def to_dict(self, frames: bool = True) -> dict[str, Any]:
         """The file's contents (``frames=False``: without the rollout frames).

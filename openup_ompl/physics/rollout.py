@@ -41,8 +41,18 @@ from openup_ompl.executor import check_generator_seed
 from openup_ompl.physics.inputs import PlanInput
 from openup_ompl.physics.monitor import UNSTABLE, Monitor, transform
 from openup_ompl.physics.options import PHASE_MAX, PhysicsOptions
-from openup_ompl.physics.phases import Closing, Lift, Reach, hold, settle
+from openup_ompl.physics.phases import (
+    PHASE_ORDER,
+    Closing,
+    Lift,
+    LiftTargets,
+    Reach,
+    ReachTargets,
+    hold,
+    settle,
+)
 from openup_ompl.physics.record import ExecutionRecord
+from openup_ompl.physics.reuse import cached_world
 from openup_ompl.physics.targets import (
     closed_configuration,
     closed_targets,
@@ -58,7 +68,6 @@ from openup_ompl.physics.verdict import (
     judge,
     pose_change,
 )
-from openup_ompl.physics.world import make_world
 from openup_ompl.plan import Plan, PlanFile
 from openup_ompl.scene import Problem, Shape
 from openup_ompl.truth import with_true_object
@@ -158,7 +167,7 @@ class Rollout:
             source = PlanInput.from_file(plan)
         self.source = source
         self.options = options = options or PhysicsOptions()
-        self.world = world = make_world(source.robot, source.obstacles, source.object, options)
+        self.world = world = cached_world(source.robot, source.obstacles, source.object, options)
         self.path = source.path
         self.timed = time_path(self.path, world.velocity_limit, options.speed, options.acceleration)
         if self.timed.duration > PHASE_MAX:
@@ -191,6 +200,10 @@ class Rollout:
         self.lead = -model.actuator_biasprm[world.actuator, 2] / gains
         self.goal = source.grasp_pose[:3]
         self.start_distance = source.start_palm_distance
+        dt = float(model.opt.timestep)
+        self.reach_targets = ReachTargets(self.timed, self.lead, dt)
+        lift_steps = max(1, math.ceil(options.lift_height / options.lift_speed / dt))
+        self.lift_targets = LiftTargets(self.lift, world.arm, self.lead[world.arm], lift_steps, dt)
 
     def run(
         self, offset: Sequence[float] = (0.0, 0.0, 0.0), seed: int = 0, frames: bool = True
@@ -232,6 +245,8 @@ class Rollout:
             world.object_shape.pose, dx + float(jitter[0]), dy + float(jitter[1]), yaw
         )
         sim.qpos[world.object_qpos : world.object_qpos + 7] = true_pose
+        for address, start in zip(world.neighbour_qpos, world.neighbour_start, strict=True):
+            sim.qpos[address : address + 7] = start
         sim.qpos[world.qpos] = self.path[0]
         sim.ctrl[world.actuator] = self.path[0]
         mujoco.mj_forward(model, sim)
@@ -247,13 +262,14 @@ class Rollout:
         jitter, floor = self._start(dx, dy, seed, yaw)
         period = max(1, round(options.frame_period / world.model.opt.timestep))
         monitor = Monitor(world, sim, np.array(self.path[0]), floor, self.goal,
-                          self.start_distance, period if frames else 0, messages)  # fmt: skip
+                          self.start_distance, period if frames else 0, messages,
+                          early_end=options.early_end)  # fmt: skip
         phases: dict[str, float] = {}
         phases["settle"] = settle(monitor, options.settle)
         monitor.check_stable()
         settled = transform(sim, world.object_body)
         neighbours_settled = [transform(sim, body) for body in world.neighbour_body]
-        reach = Reach(self.timed, self.lead)
+        reach = Reach(self.reach_targets)
         phases["reach"] = reach.run(monitor)
         monitor.check_stable()
         moved_m, moved_rad = pose_change(settled, transform(sim, world.object_body))
@@ -267,13 +283,14 @@ class Rollout:
         palm_z0 = float(sim.xpos[world.palm_body][2])
         object_z0 = float(sim.xpos[world.object_body][2])
         object_qpos_z0 = float(sim.qpos[world.object_qpos + 2])
-        lift_time = options.lift_height / options.lift_speed
-        lift_steps = max(1, math.ceil(lift_time / monitor.dt))
-        lift = Lift(self.lift, world.arm, self.lead[world.arm], lift_steps)
+        lift = Lift(self.lift_targets)
         phases["lift"] = lift.run(monitor)
         monitor.check_stable()
         phases["hold"] = hold(monitor, options.hold)
         monitor.check_stable()
+        if monitor.ended is not None:  # the phases after the one it ended in never ran
+            last = PHASE_ORDER.index(monitor.ended["phase"])
+            phases = {k: v for k, v in phases.items() if PHASE_ORDER.index(k) <= last}
 
         in_palm_end = np.linalg.inv(transform(sim, world.palm_body)) @ transform(
             sim, world.object_body
@@ -361,6 +378,7 @@ class Rollout:
             },
             options=dataclasses.asdict(self.options),
             steps=int(monitor.steps),
+            ended_early=monitor.ended,
             neighbours=neighbours,
             neighbour_moved=any(n["moved"] for n in neighbours),
             neighbour_tipped=any(n["tipped"] for n in neighbours),

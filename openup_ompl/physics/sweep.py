@@ -5,7 +5,8 @@ The task plans exactly as the kinematic one does
 runs every perturbation of the object through one
 :class:`~openup_ompl.physics.rollout.Rollout` of that plan. Each trial is the rollout's
 execution record (without the viewer's frames) plus the sweep's keys (``dx, dy, yaw,
-success, collision``; ``collision``: a robot link touched an obstacle in physics).
+success, collision``; ``collision``: a robot link touched an obstacle in physics). Trials
+end early once their verdict is certain (``PhysicsOptions.early_end``).
 """
 
 from __future__ import annotations
@@ -81,7 +82,7 @@ def physics_run(
     from openup_ompl.physics.rollout import Rollout
     from openup_ompl.robustness import plan_nominal
 
-    options = PhysicsOptions()
+    options = PhysicsOptions(early_end=True)
     record, _, plan = plan_nominal(
         seed, scene, u, planner, time_limit, perturbations, open_arrival,
         failed={"touched": False, "moved_before_closing": None},
@@ -131,7 +132,7 @@ def physics_judge(setup: GraspPlanningSetup, plan: Plan, truth: Problem) -> dict
     dx, dy, yaw = planar_offset(estimate, true)
     true = Shape.from_table(true.to_table(), "truth object", is_object=True)
     try:
-        rollout = Rollout(plan, scene_object=true)
+        rollout = Rollout(plan, PhysicsOptions(early_end=True), scene_object=true)
         record = rollout.run((0.0, 0.0, 0.0), frames=False).to_dict(False)
     except SimulationDiverged as error:
         trial = _diverged(error)

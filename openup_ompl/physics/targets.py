@@ -10,7 +10,8 @@ import numpy as np
 
 from openup_ompl.exceptions import ConfigError
 from openup_ompl.grasp import closing_limits
-from openup_ompl.physics.world import World, robot_spec
+from openup_ompl.physics.robot_table import robot_spec
+from openup_ompl.physics.world import World
 
 if TYPE_CHECKING:
     from openup_ompl.robot_file import RobotSpec

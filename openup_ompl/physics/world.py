@@ -26,22 +26,24 @@ from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from openup_ompl.exceptions import ConfigError, OpenUpError
+from openup_ompl.exceptions import ConfigError
 from openup_ompl.physics.options import PhysicsOptions
-from openup_ompl.physics.shapes import add_free_body, add_scene, mujoco_quat
+from openup_ompl.physics.pads import add_pads, pad_contacts
+from openup_ompl.physics.robot_table import RobotTable
+from openup_ompl.physics.shapes import add_free_body, add_scene
 from openup_ompl.scene import Shape
 from openup_ompl.urdf import absolute_meshes, urdf_mimic, urdf_tree
 
 if TYPE_CHECKING:
     import mujoco
 
-    from openup_ompl.robot_file import PadSpec, RobotSpec
 
 __all__ = [
     "COMPILER",
@@ -63,8 +65,6 @@ COMPILER = (
 ROBOT, OBSTACLE, OBJECT, FIXED_ROBOT, NEIGHBOUR = 0, 1, 2, 3, 4
 #: Body name prefix of a movable obstacle (``"neighbour/<shape name>"``).
 NEIGHBOUR_BODY = "neighbour/"
-#: Geom name prefix of a contact pad (``"pad:<link>:<index>"``).
-PAD = "pad:"
 
 
 def urdf_spec(urdf: str | Path, package_dirs: list[str]) -> tuple[mujoco.MjSpec, ET.Element]:
@@ -140,6 +140,10 @@ class World:
         object_shape: The object as placed in the plan's scene (the nominal pose).
         neighbours: The movable obstacles (free bodies), in the scene's order.
         neighbour_body: Body index of each of :attr:`neighbours`.
+        neighbour_qpos: ``qpos`` address of each one's free joint.
+        neighbour_dof: ``qvel`` address of each one's free joint.
+        neighbour_start: ``(k, 7)`` each one's start ``qpos`` (position, scalar-first
+            quaternion): its scene pose.
     """
 
     model: Any
@@ -164,6 +168,9 @@ class World:
     object_shape: Shape
     neighbours: list[Shape] = field(default_factory=list)
     neighbour_body: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
+    neighbour_qpos: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
+    neighbour_dof: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
+    neighbour_start: np.ndarray = field(default_factory=lambda: np.zeros((0, 7)))
 
 
 def _joint_limits(root: ET.Element) -> dict[str, tuple[float, float]]:
@@ -177,71 +184,6 @@ def _joint_limits(root: ET.Element) -> dict[str, tuple[float, float]]:
             effort = float(tag.get("effort", "inf")) or math.inf
         limits[str(joint.get("name"))] = (velocity, effort)
     return limits
-
-
-def robot_spec(name: str) -> RobotSpec | None:
-    """The shipped or installed robot file of ``name``, or ``None`` if none is found."""
-    from openup_ompl.robot_file import RobotSpec, find_robot_file
-
-    try:
-        return RobotSpec.from_file(find_robot_file(name))
-    except OpenUpError:  # a robot this package does not know
-        return None
-
-
-@dataclass(frozen=True)
-class RobotTable:
-    """What the world needs of the robot: a plan file's ``robot`` table, typed.
-
-    Attributes:
-        name: The robot's name.
-        urdf: Its URDF file.
-        package_dirs: Directories resolving ``package://`` mesh URIs.
-        palm_frame: The palm frame's link.
-        joint_names: Every joint, in the order of a path row.
-        arm_joints: The arm's joints.
-        hand_joints: The hand's joints (driven, then followers).
-        pads: Physics-only contact pads (its robot file's ``[physics] pads``).
-    """
-
-    name: str
-    urdf: str
-    package_dirs: tuple[str, ...]
-    palm_frame: str
-    joint_names: tuple[str, ...]
-    arm_joints: tuple[str, ...]
-    hand_joints: tuple[str, ...]
-    pads: tuple[PadSpec, ...] = ()
-
-    @classmethod
-    def from_table(cls, table: dict[str, Any]) -> RobotTable:
-        """A plan file's ``robot`` table (missing keys read as empty), with the pads of the
-        robot file found by its name (none if no file is found)."""
-        spec = robot_spec(str(table.get("name")))
-        return cls(
-            name=str(table.get("name")),
-            urdf=str(table.get("urdf") or ""),
-            package_dirs=tuple(table.get("package_dirs") or ()),
-            palm_frame=str(table.get("palm_frame")),
-            joint_names=tuple(table.get("joint_names") or ()),
-            arm_joints=tuple(table.get("arm_joints") or ()),
-            hand_joints=tuple(table.get("hand_joints") or ()),
-            pads=spec.pads if spec is not None else (),
-        )
-
-    @classmethod
-    def from_robot(cls, robot: Any) -> RobotTable:
-        """A loaded :class:`~openup_ompl.robot.Robot`'s (what its plans' files hold)."""
-        return cls(
-            name=robot.spec.name,
-            urdf=str(robot.urdf),
-            package_dirs=tuple(str(p) for p in robot.package_dirs),
-            palm_frame=robot.spec.palm_frame,
-            joint_names=tuple(robot.joint_names),
-            arm_joints=tuple(robot.spec.arm_joints),
-            hand_joints=tuple(robot.hand_joints),
-            pads=tuple(robot.spec.pads),
-        )
 
 
 def build_world(data: dict[str, Any], options: PhysicsOptions | None = None) -> World:
@@ -258,7 +200,7 @@ def build_world(data: dict[str, Any], options: PhysicsOptions | None = None) -> 
 
 def make_world(
     robot: RobotTable,
-    obstacles: list[Shape] | tuple[Shape, ...],
+    obstacles: Sequence[Shape],
     scene_object: Shape,
     options: PhysicsOptions | None = None,
 ) -> World:
@@ -273,7 +215,7 @@ def make_world(
     limits = _joint_limits(root)
     _add_robot(spec, robot, limits, options)
     pads = robot.pads if options.pads else ()
-    _add_pads(spec, pads, options)
+    add_pads(spec, pads, options)
     if options.object_mass is not None:
         scene_object = replace(scene_object, mass=options.object_mass)
     if options.object_friction is not None:
@@ -293,7 +235,7 @@ def make_world(
         ) from None
     world = _index(model, robot, root, limits, scene_object, neighbours, options)
     if pads:
-        _pad_contacts(world)
+        pad_contacts(world)
     return world
 
 
@@ -402,78 +344,6 @@ def _set_contacts(spec: mujoco.MjSpec) -> None:
         geom.contype, geom.conaffinity = (1, 1) if scene else (1, 0)
 
 
-def _add_pads(spec: mujoco.MjSpec, pads: tuple[PadSpec, ...], options: PhysicsOptions) -> None:
-    """Each pad a massless geom ``pad:<link>:<i>`` of its link's body, with its own
-    friction and softness where it gives them (then it outranks the object's priority).
-
-    Raises:
-        ConfigError: A pad on a link the URDF lacks.
-    """
-
-    bodies = {body.name: body for body in spec.bodies}
-    for i, pad in enumerate(pads):
-        if pad.link not in bodies:
-            raise ConfigError(f"robot physics.pads[{i}].link", pad.link, "a link of the URDF")
-        kind, size = _pad_geom(pad)
-        extra: dict[str, Any] = {}
-        if pad.friction is not None:
-            extra["friction"] = [pad.friction, 0.005, 0.0001]
-        if pad.timeconst is not None:
-            extra["solref"] = [max(pad.timeconst, 2 * options.timestep), 1.0]
-        if pad.solimp is not None:
-            extra["solimp"] = [*pad.solimp, *(0.5, 2.0)[len(pad.solimp) - 3 :]]
-        if extra:
-            extra["priority"] = 2
-        bodies[pad.link].add_geom(
-            name=f"{PAD}{pad.link}:{i}", type=kind, size=size, mass=0.0,
-            pos=pad.pose[:3].tolist(), quat=mujoco_quat(pad.pose).tolist(), **extra,
-        )  # fmt: skip
-
-
-def _pad_geom(pad: PadSpec) -> tuple[Any, list[float]]:
-    """MuJoCo's geom type and size (half sizes, half length) of a pad."""
-    import mujoco
-
-    if pad.shape == "box":
-        assert pad.size is not None
-        return mujoco.mjtGeom.mjGEOM_BOX, (pad.size / 2).tolist()
-    assert pad.radius is not None
-    if pad.shape == "sphere":
-        return mujoco.mjtGeom.mjGEOM_SPHERE, [pad.radius, 0.0, 0.0]
-    assert pad.length is not None
-    return mujoco.mjtGeom.mjGEOM_CAPSULE, [pad.radius, pad.length / 2, 0.0]
-
-
-def _pad_contacts(world: World) -> None:
-    """Contact bits once pads exist (MuJoCo collides two geoms when ``contype`` of one
-    meets ``conaffinity`` of the other): fixed obstacles (1, 1); the object and the
-    neighbours (5, 6); robot geoms (3, 0); a pad (2, 0): the object and neighbours only;
-    a URDF geom of a pad's link that contains the pad's centre (1, 0): obstacles only.
-    Robot geoms never meet each other; every pair that met without pads still meets."""
-    model, kinds = world.model, world.geom_kind
-    pads = [g for g in range(model.ngeom) if model.geom(g).name.startswith(PAD)]
-    scene = np.isin(kinds, (OBJECT, NEIGHBOUR))
-    model.geom_contype[scene], model.geom_conaffinity[scene] = 5, 6
-    robot = np.isin(kinds, (ROBOT, FIXED_ROBOT))
-    model.geom_contype[robot], model.geom_conaffinity[robot] = 3, 0
-    for p in pads:
-        model.geom_contype[p] = 2
-        for g in np.flatnonzero(model.geom_bodyid == model.geom_bodyid[p]):
-            if g not in pads and _contains(model, int(g), model.geom_pos[p]):
-                model.geom_contype[g] = 1
-
-
-def _contains(model: Any, geom: int, point: np.ndarray) -> bool:
-    """Whether ``point`` (body frame) lies in the bounding box of ``geom``."""
-    import mujoco
-
-    rotation = np.zeros(9)
-    mujoco.mju_quat2Mat(rotation, model.geom_quat[geom])
-    local = rotation.reshape(3, 3).T @ (point - model.geom_pos[geom])
-    centre, half = model.geom_aabb[geom][:3], model.geom_aabb[geom][3:]
-    return bool(np.all(np.abs(local - centre) <= half + 1e-9))
-
-
 def _index(
     model: Any,
     robot: RobotTable,
@@ -533,6 +403,11 @@ def _index(
         object_shape=scene_object,
         neighbours=list(neighbours),
         neighbour_body=neighbour_body,
+        neighbour_qpos=model.jnt_qposadr[model.body_jntadr[neighbour_body]].astype(np.intp),
+        neighbour_dof=model.jnt_dofadr[model.body_jntadr[neighbour_body]].astype(np.intp),
+        neighbour_start=np.array(
+            [model.qpos0[a : a + 7] for a in model.jnt_qposadr[model.body_jntadr[neighbour_body]]]
+        ).reshape(-1, 7),
     )
 
 
