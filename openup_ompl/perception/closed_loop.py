@@ -192,6 +192,26 @@ def kinematic_judge(setup: GraspPlanningSetup, plan: Plan, truth: Problem) -> di
     return execute(setup, plan, dx, dy, yaw, torsion=torsion)[0]
 
 
+def _unseen_records(
+    base: dict[str, Any], policies: Sequence[str], error: PerceptionError
+) -> list[dict[str, Any]]:
+    """A view with no estimate has nothing to plan: each policy's record says "not seen"
+    (not a planning failure); a fixed policy still has its u, the covariance none."""
+    return [
+        {
+            **base,
+            "policy": policy,
+            "u": None if policy == "covariance" else float(policy),
+            "error_mm": None,
+            "seen": False,
+            "planned": False,
+            "success": False,
+            "error": str(error),
+        }
+        for policy in policies
+    ]
+
+
 def closed_loop(
     problem: Problem,
     options: ClosedLoopOptions | None = None,
@@ -242,21 +262,7 @@ def closed_loop(
                         options=options.perception,
                     )
                 except PerceptionError as error:
-                    # No estimate, so nothing to plan: the trial is "not seen" (not a
-                    # planning failure); a fixed policy still has its u, the covariance none.
-                    for policy in options.policies:
-                        records.append(
-                            {
-                                **base,
-                                "policy": policy,
-                                "u": None if policy == "covariance" else float(policy),
-                                "error_mm": None,
-                                "seen": False,
-                                "planned": False,
-                                "success": False,
-                                "error": str(error),
-                            }
-                        )
+                    records.extend(_unseen_records(base, options.policies, error))
                     if progress is not None:
                         progress(
                             f"noise {noise:g}, distance {distance:g} m, seed {seed} done"
