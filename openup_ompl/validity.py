@@ -178,13 +178,16 @@ class CoupledChecker(StateChecker):
     def weights(
         self, a: np.ndarray, b: np.ndarray, ends: tuple[float, float] | None = None
     ) -> np.ndarray:
-        """Weights of the displacement bound for the motion ``a -> b``: without the
-        fingers' term where ``d`` provably stays above ``mga`` all along (the hand is then
-        on the law's plateau and does not move), else :attr:`motion_weights`.
+        """Weights [m/rad] ``(dof,)`` of the displacement bound for the motion ``a -> b``:
+        without the fingers' term where ``d`` provably stays above ``mga`` all along (the hand
+        is then on the law's plateau and does not move), else :attr:`motion_weights`.
 
         Along the motion ``d >= (d(a) + d(b) - rates . |b - a|) / 2``, from the Lipschitz
-        bound of ``d`` (:attr:`distance_rates`) at both ends; ``ends`` gives
-        ``(d(a), d(b))`` when they are known.
+        bound of ``d`` (:attr:`distance_rates`) at both ends.
+
+        Args:
+            a, b: Arm configurations [rad], shape ``(dof,)``.
+            ends: ``(d(a), d(b))`` [unitless] when known; computed otherwise.
         """
         if self.law.fixed is not None:
             return self.motion_weights
@@ -236,9 +239,14 @@ class CoupledChecker(StateChecker):
         resolution: float | None = None,
         weights: np.ndarray | None = None,
     ) -> int:
-        """Number of steps the motion ``a -> b`` is cut into so that no robot point moves
-        more than ``resolution`` (default :attr:`resolution`) between checked states, in
-        the bound of ``weights`` (default :attr:`motion_weights`)."""
+        """Number of steps (at least 1) the motion ``a -> b`` is cut into so that no robot
+        point moves more than ``resolution`` between checked states, in the bound of ``weights``.
+
+        Args:
+            a, b: Arm configurations [rad], shape ``(dof,)``.
+            resolution: Largest move of a robot point per step [m]; default :attr:`resolution`.
+            weights: Per-joint weights [m/rad]; default :attr:`motion_weights`.
+        """
         step = self.resolution if resolution is None else resolution
         w = self.motion_weights if weights is None else weights
         return self.bound.segment_count(b - a, step, w)
@@ -250,15 +258,22 @@ class CoupledChecker(StateChecker):
         resolution: float | None = None,
         weights: np.ndarray | None = None,
     ) -> np.ndarray:
-        """Arm states along ``a -> b`` no robot point ``resolution`` (default
-        :attr:`resolution`) apart in the bound of ``weights`` (default
-        :attr:`motion_weights`), excluding ``a``, including ``b``: ``(n, dof)``."""
+        """Arm states [rad] along ``a -> b``, excluding ``a``, including ``b``, shape
+        ``(n, dof)``: no robot point moves more than ``resolution`` between two.
+
+        Args:
+            a, b, resolution, weights: As for :meth:`segment_count`.
+        """
         n = self.segment_count(a, b, resolution, weights)
         t = np.arange(1, n + 1, dtype=float)[:, None] / n
         return a + t * (b - a)
 
     def coupled_qs(self, arms: np.ndarray) -> np.ndarray:
-        """Full configurations, hand from the law, for arm states ``(n, dof)``: ``(nq, n)``."""
+        """Full configurations, one per column ``(nq, n)``, the hand set by the law.
+
+        Args:
+            arms: Arm configurations [rad], shape ``(n, dof)`` (or ``(dof,)``).
+        """
         arms = np.atleast_2d(arms)
         qs = self._arm_qs(arms)
         steps = self.distance_rates @ np.abs(np.diff(arms, axis=0)).T
@@ -310,28 +325,30 @@ class CoupledChecker(StateChecker):
     def check_motion(self, a: np.ndarray, b: np.ndarray) -> bool:
         """Whether the straight arm motion ``a -> b`` is collision-free with the coupled hand.
 
-        ``b`` is checked first (the finest margin). Then states of the motion are placed
-        where they are needed, each with the widest of the margins :attr:`paddings` it
-        keeps: a point of the robot that moves no more than ``m_i + m_j`` between two
-        checked states of margins ``m_i`` and ``m_j`` stays within one margin of one of
-        them, so the interval between them is collision-free. The first round places
-        states :attr:`coarse_resolution` apart against the widest margin: a motion far
-        from every obstacle is settled by them. Each further round cuts the intervals
-        still uncovered at the spacing their thinner end's margin covers, and checks the
-        new states from that margin on; a state that collides even with the finest margin
+        ``b`` is checked first (the finest margin). Then states of the motion are placed where they
+        are needed, each with the widest of the margins :attr:`paddings` it keeps: a point of the
+        robot that moves no more than ``m_i + m_j`` between two checked states of margins ``m_i``
+        and ``m_j`` stays within one margin of one of them, so the interval between them is
+        collision-free. The first round places states :attr:`coarse_resolution` apart against the
+        widest margin: a motion far from every obstacle is settled by them. Each further round cuts
+        the intervals still uncovered at the spacing their thinner end's margin covers, and checks
+        the new states from that margin on; a state that collides even with the finest margin
         refuses the motion. Each round's states of one margin go to Coal in one batch
-        (:meth:`~openup_ompl.collision.CollisionWorld.batch_in_collision`). A long
-        motion's first round (:data:`PROBE_MIN_STATES` states or more) is probed first:
-        one state in :data:`PROBE_STRIDE` against the finest margin, up to the first that
-        collides, which refuses it as its full round would.
+        (:meth:`~openup_ompl.collision.CollisionWorld.batch_in_collision`). A long motion's first
+        round (:data:`PROBE_MIN_STATES` states or more) is probed first: one state in
+        :data:`PROBE_STRIDE` against the finest margin, up to the first that collides, which refuses
+        it as its full round would.
 
-        The displacement bound is the arm's share plus the fingers'. The arm's is the
-        global weights' (:attr:`plateau_weights`), or, once the motion needs more than the
-        first round or is long, the smaller bound from its two ends' placements
-        (:func:`~openup_ompl.motion_bound.local_reach`). The fingers' is counted only over
-        the intervals where ``d`` may reach ``mga`` (from the lower bounds of ``d`` at
-        their two states and how fast ``d`` changes along the motion): elsewhere the
-        hand is on the law's plateau and still.
+        The displacement bound is the arm's share plus the fingers'. The arm's is the global
+        weights' (:attr:`plateau_weights`), or, once the motion needs more than the first round or
+        is long, the smaller bound from its two ends' placements
+        (:func:`~openup_ompl.motion_bound.local_reach`). The fingers' is counted only over the
+        intervals where ``d`` may reach ``mga`` (from the lower bounds of ``d`` at their two states
+        and how fast ``d`` changes along the motion): elsewhere the hand is on the law's plateau and
+        still.
+
+        Args:
+            a, b: Arm configurations [rad], shape ``(dof,)``; ``a`` is assumed valid.
         """
         self.motions_checked += 1
         free, db = self._check_state(b)
@@ -426,7 +443,12 @@ class CoupledChecker(StateChecker):
 
     def is_certified(self, a: np.ndarray, b: np.ndarray) -> bool:
         """Whether :meth:`check_motion` accepted the motion ``a -> b`` or ``b -> a`` (the
-        same bit-exact arm configurations) since :attr:`certified` last restarted."""
+        same bit-exact arm configurations) since :attr:`certified` last restarted.
+
+        Args:
+            a, b: Arm configurations [rad], shape ``(dof,)``.
+        """
+
         a = np.ascontiguousarray(a, dtype=float)
         b = np.ascontiguousarray(b, dtype=float)
         keys = self.certified
