@@ -187,7 +187,18 @@ class GraspPlanningSetup:
         self.simple_setup.setGoal(self.goal_region)
 
     def make_planner(self, name: str, seed: int | None = None) -> ob.Planner:
-        """A planner by name (see :data:`PLANNERS`) on this setup's space information."""
+        """A planner by name (see :data:`PLANNERS`) on this setup's space information.
+
+        Args:
+            name: A planner name from :data:`PLANNERS` (any case).
+            seed: Seed of an IKBiRRT (``None``: fresh entropy); OMPL's planners ignore it.
+
+        Returns:
+            The planner, its range set to :attr:`planner_range` [rad] when it has one.
+
+        Raises:
+            ConfigError: ``name`` is not one of :data:`PLANNERS`.
+        """
         key = check_planner(name)
         si = self.space_information
         if key == "ikbirrt":
@@ -198,8 +209,15 @@ class GraspPlanningSetup:
         return planner
 
     def reseed(self, seed: int | None) -> None:
-        """Restart the run's random generators (IK restarts, goal sampling) from ``seed``
-        (:func:`check_seed`: ``None`` draws one)."""
+        """Restart the run's random generators (IK restarts, goal sampling) from ``seed``.
+
+        Args:
+            seed: A non-negative integer seed, or ``None`` to draw one
+                (:func:`check_seed`).
+
+        Raises:
+            ConfigError: ``seed`` is not a valid seed.
+        """
         self.goal.rng = np.random.default_rng(check_seed(seed))
         self.goal.solutions[:] = self._initial_solutions
         self.goal_region.forget()
@@ -237,6 +255,10 @@ class GraspPlanningSetup:
             ConfigError: Bad time limit, seed, planner name or simplification option,
                 or an instance of a planner refused by name (``og.PRM``, ...).
             PlanningFailed: No exact solution in time (the message gives OMPL's status).
+
+        Returns:
+            The verified :class:`~openup_ompl.plan.Plan`: full configurations from the
+            start to the grasp, with its planning statistics.
         """
         time_limit = self.options.time_limit if time_limit is None else check_time_limit(time_limit)
         seed = check_seed(seed)
@@ -392,7 +414,12 @@ class GraspPlanningSetup:
         return int(approach.shape[0])
 
     def simplify(self, path: og.PathGeometric, rounds: int = 3) -> None:
-        """Shorten ``path`` in place with OMPL's ``PathSimplifier``, in bounded rounds."""
+        """Shorten ``path`` in place with OMPL's ``PathSimplifier``, in bounded rounds.
+
+        Args:
+            path: An OMPL path over the arm joints [rad], changed in place.
+            rounds: Rounds at most; stops early when a round changes nothing.
+        """
         simplifier = og.PathSimplifier(self.space_information, self.goal_region)
         for _ in range(rounds):
             changed = simplifier.reduceVertices(path)
@@ -402,8 +429,15 @@ class GraspPlanningSetup:
                 break
 
     def densify(self, waypoints: np.ndarray) -> np.ndarray:
-        """Full configurations along the waypoints (arm configurations, ``(M, dof)``) at
-        the checker's resolution, the hand from the law at every row: ``(N, nq)``.
+        """Full configurations along the waypoints at the checker's resolution, the hand
+        from the law at every row.
+
+        Args:
+            waypoints: Arm configurations [rad], shape ``(M, dof)``.
+
+        Returns:
+            Full configurations [rad; m for prismatic joints], shape ``(N, nq)``,
+            ``N >= M``.
 
         Raises:
             ConfigError: ``waypoints`` is not a non-empty array of rows of ``dof`` finite
@@ -418,6 +452,10 @@ class GraspPlanningSetup:
         limits (:data:`~openup_ompl.robot.LIMIT_TOLERANCE`) at every row, and collide
         nowhere (at ``rows`` only, if given: :meth:`solve` leaves out the rows inside
         motions the checker certified). Whether the hand follows the law is not checked.
+
+        Args:
+            path: Full configurations [rad; m for prismatic joints], shape ``(N, nq)``.
+            rows: Indices into ``path`` of the rows to check for collision (``None``: all).
 
         Raises:
             ConfigError: ``path`` is not a non-empty array of rows of ``nq`` finite

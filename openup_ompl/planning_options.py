@@ -78,8 +78,18 @@ def _hand_override(value: str | Sequence[float] | None, law: HandLaw) -> np.ndar
 
 
 def check_planner(name: str) -> str:
-    """``name`` lowered if it is one of :data:`PLANNERS`, else a :class:`ConfigError` that
-    says why a known but unsupported OMPL planner is left out."""
+    """Check a planner name.
+
+    Args:
+        name: A planner name, any case.
+
+    Returns:
+        ``name`` lowered, one of :data:`PLANNERS`.
+
+    Raises:
+        ConfigError: ``name`` is not one of :data:`PLANNERS`; the message says why a
+            known but unsupported OMPL planner is left out.
+    """
     key = name.lower() if isinstance(name, str) else name
     if key not in PLANNERS:
         why = f" ({_UNSUPPORTED[key]})" if key in _UNSUPPORTED else ""
@@ -88,8 +98,18 @@ def check_planner(name: str) -> str:
 
 
 def check_planner_instance(planner: ob.Planner) -> ob.Planner:
-    """``planner`` unless it is an instance of an OMPL planner refused by name (see
-    :data:`_UNSUPPORTED`), else a :class:`ConfigError` that says why."""
+    """Check a planner instance.
+
+    Args:
+        planner: An OMPL planner.
+
+    Returns:
+        ``planner`` itself.
+
+    Raises:
+        ConfigError: ``planner`` is an instance of an OMPL planner refused by name (see
+            :data:`_UNSUPPORTED`); the message says why.
+    """
     for kind, key in _UNSUPPORTED_CLASSES:
         if isinstance(planner, kind):
             raise ConfigError(
@@ -107,16 +127,36 @@ TIME_LIMIT_MAX = 1e6
 
 
 def check_time_limit(time_limit: float, where: str = "time_limit") -> float:
-    """``time_limit`` [s] if it is a number in ``(0, TIME_LIMIT_MAX]``, else a
-    :class:`ConfigError`."""
+    """Check a planning time limit.
+
+    Args:
+        time_limit: Time limit [s].
+        where: The name the error gives the value.
+
+    Returns:
+        ``time_limit`` as a float [s].
+
+    Raises:
+        ConfigError: ``time_limit`` is not a number in ``(0, TIME_LIMIT_MAX]``.
+    """
     if not (_toml.is_number(time_limit) and 0 < time_limit <= TIME_LIMIT_MAX):
         raise ConfigError(where, time_limit, f"a positive number of seconds <= {TIME_LIMIT_MAX:g}")
     return float(time_limit)
 
 
 def check_seed(seed: int | None, where: str = "seed") -> int | None:
-    """``seed`` if it is ``None`` or an integer in ``[0, 2^63)``, else a
-    :class:`ConfigError`."""
+    """Check a random seed.
+
+    Args:
+        seed: A seed, or ``None`` (fresh entropy).
+        where: The name the error gives the value.
+
+    Returns:
+        ``seed`` (a Python ``int`` or ``None``).
+
+    Raises:
+        ConfigError: ``seed`` is neither ``None`` nor an integer in ``[0, 2^63)``.
+    """
     if seed is None:
         return None
     if not (
@@ -218,8 +258,17 @@ class PlanningOptions:
         _toml.number(self.pregrasp, "pregrasp", low=0.0, high=MAX_RETREAT)
 
     def overridden(self, **changes: Any) -> PlanningOptions:
-        """These options with the fields of ``changes`` that are not ``None`` replaced
-        (checked again); ``self`` when there are none."""
+        """These options with some fields replaced.
+
+        Args:
+            **changes: New field values; ``None`` keeps the field's.
+
+        Returns:
+            New options (checked again), or ``self`` when nothing changes.
+
+        Raises:
+            ConfigError: A bad new value.
+        """
         given = {name: value for name, value in changes.items() if value is not None}
         return dataclasses.replace(self, **given) if given else self
 
@@ -227,6 +276,13 @@ class PlanningOptions:
 def planning_law(problem: Problem, options: PlanningOptions) -> HandLaw:
     """The hand law ``problem`` is planned with under ``options``: the scene's, with the
     options' ``u``, variants and fixed hand where they are given.
+
+    Args:
+        problem: The planning problem; its scene gives the default law.
+        options: The planning options.
+
+    Returns:
+        The hand law to plan with.
 
     Raises:
         ConfigError: A bad ``fixed_hand``.
