@@ -101,7 +101,11 @@ class Plan:
         return {spec.key: spec.write(self) for spec in PLAN_FIELDS}
 
     def save(self, path: str | Path) -> Path:
-        """Write the plan file (JSON, README, Files: Plan), atomically; returns its path."""
+        """Write the plan file (JSON, README, Files: Plan), atomically; returns its path.
+
+        Args:
+            path: The file to write (a :class:`ConfigError` if it is a directory).
+        """
         if not isinstance(path, (str, os.PathLike)) or Path(path).is_dir():
             raise ConfigError("plan file", path, "a path to a file to write")
         path = Path(path)
@@ -112,8 +116,10 @@ class Plan:
 
 def read_plan(path: str | Path) -> dict[str, Any]:
     """Read a plan file and check it whole, as :meth:`PlanFile.read` does (the one check
-    of ``show`` and ``execute``); returns its contents.
+    of ``show`` and ``execute``); returns its contents (a dict, as :meth:`Plan.to_dict`).
 
+    Args:
+        path: The plan file (JSON).
     Raises:
         ConfigError: What :meth:`PlanFile.read` raises.
     """
@@ -387,6 +393,8 @@ class PlanFile:
     def read(cls, path: str | Path) -> PlanFile:
         """Read a plan file, check it (:meth:`from_dict`) and load its robot's model.
 
+        Args:
+            path: The plan file (JSON).
         Raises:
             ConfigError: The file is not a readable ``openup-plan/1`` file, or what
                 :meth:`from_dict` raises, located at ``<file name>: <key>``.
@@ -459,7 +467,11 @@ class PlanFile:
     @classmethod
     def from_plan(cls, plan: Plan, name: str = "plan") -> PlanFile:
         """What the plan file of ``plan`` would hold, without writing and re-reading it:
-        its law, shapes and path as they are; the model built from the robot's URDF."""
+        its law, shapes and path as they are; the model built from the robot's URDF.
+
+        Args:
+            plan: A plan; ``name``: a short name for titles.
+        """
         robot = plan.problem.robot
         model = _urdf_model(str(robot.urdf))
         hand_idx = q_indices(model, tuple(robot.hand_joints))
