@@ -114,7 +114,11 @@ MAX_SEEDS = 10_000
 
 
 def default_robustness_scene() -> Path:
-    """The paper's robot taking a can from the side: ``scenes/lwa3_sdh_can.toml``."""
+    """The paper's robot taking a can from the side.
+
+    Returns:
+        The path of ``scenes/lwa3_sdh_can.toml``.
+    """
     return data_dir("scenes") / "lwa3_sdh_can.toml"
 
 
@@ -203,7 +207,14 @@ class RobustnessOptions:
             check_torsion(self.torsion)
 
     def planning(self, u: float) -> PlanningOptions:
-        """How each plan of the sweep is made: at ``u``, simplified."""
+        """How each plan of the sweep is made: at ``u``, simplified.
+
+        Args:
+            u: The hand law's closing parameter ``u`` (unitless, in ``[0, 1]``).
+
+        Returns:
+            The planning options of the sweep's plans at ``u``.
+        """
         return PlanningOptions(
             u=u,
             open_arrival=self.open_arrival,
@@ -217,7 +228,15 @@ def perturbations(
     deltas: Sequence[float], yaws: Sequence[float] = (0.0,)
 ) -> list[tuple[float, float, float]]:
     """The ``(dx, dy, yaw)`` cells: each ``delta`` along +x, -x, +y, -y (0 once), times
-    every ``yaw``."""
+    every ``yaw``.
+
+    Args:
+        deltas: Object position errors [m] (``0`` gives the nominal cell once).
+        yaws: Object yaw errors [rad] about the world z axis.
+
+    Returns:
+        The cells ``(dx [m], dy [m], yaw [rad])`` in the world frame, yaw-major.
+    """
     cells: list[tuple[float, float, float]] = []
     for yaw in yaws:
         for delta in deltas:
@@ -236,8 +255,15 @@ def make_tasks(
     contents of the files the plans are made from (:meth:`Problem.source_files
     <openup_ompl.scene.Problem.source_files>`), so that a rerun with other settings, or
     after one of those files was edited, never reuses a shard
-    (:func:`~openup_ompl.executor.settings_digest`). ``problem``: ``scene`` already
-    loaded (it is loaded here otherwise).
+    (:func:`~openup_ompl.executor.settings_digest`).
+
+    Args:
+        scene: The scene file.
+        options: The sweep.
+        problem: ``scene`` already loaded (it is loaded here otherwise).
+
+    Returns:
+        The tasks, ``u``-major then seed, for :func:`~openup_ompl.executor.run_tasks`.
 
     Raises:
         ConfigError, RobotNotFound: What :func:`~openup_ompl.scene.load_scene` raises
@@ -278,7 +304,16 @@ def make_tasks(
 
 
 def summarize(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
-    """One row per ``(u, dx, dy, yaw)`` cell with the :data:`CSV_COLUMNS`, in sweep order."""
+    """Count the trials' outcomes per cell.
+
+    Args:
+        records: One record per ``(u, seed)``, as the tasks return them.
+
+    Returns:
+        One row per ``(u, dx, dy, yaw)`` cell (``dx, dy`` [m], ``yaw`` [rad]) with the
+        :data:`CSV_COLUMNS` (and :data:`PHYSICS_COLUMNS` for physics trials), in sweep
+        order.
+    """
     cells: dict[tuple[float, float, float, float], dict[str, Any]] = {}
     for record in records:
         for trial in record["trials"]:
@@ -354,6 +389,9 @@ def run_robustness(
         scheduler: Dask scheduler address; ``None`` runs locally.
         quiet: No progress on stderr.
 
+    Returns:
+        The files written and the rows and records found.
+
     Raises:
         InvalidProblem: The scene has no object, or its robot no hand to close.
         ConfigError: Bad options, arguments of another type, or ``out`` a file.
@@ -417,6 +455,11 @@ def figure_trials(
     """The paper's Fig. 1 experiment for one plan: ``u = 0.3`` (or the middle ``u``), the
     first seed, executed at the nominal pose and at the largest error up to 2 cm in each
     direction.
+
+    Args:
+        problem: The sweep's scene, loaded.
+        options: The sweep.
+        torsion: Soft-finger torsional friction lever [m] (``0``: point contacts).
 
     Returns:
         The plan and, per error, ``(trial, closed hand q, true object)``; ``None`` when

@@ -34,8 +34,21 @@ from openup_ompl.scene import Problem, load_scene
 
 
 def displaced(problem: Problem, dx: float, dy: float, yaw: float = 0.0) -> Problem:
-    """The problem with its object moved by ``(dx, dy)`` [m] in the world frame and turned
-    by ``yaw`` [rad] about its own z axis: where the object really is."""
+    """The problem with its object moved by ``(dx, dy)`` in the world frame and turned by
+    ``yaw`` about its own z axis: where the object really is.
+
+    Args:
+        problem: The nominal problem.
+        dx, dy: Position error [m] along the world x and y axes.
+        yaw: Rotation error [rad] about the object's own z axis.
+
+    Returns:
+        A copy of ``problem`` whose object is at the displaced pose (the obstacles and
+        grasp pose unchanged).
+
+    Raises:
+        InvalidProblem: The scene has no ``[object]``.
+    """
     shape = problem.object
     if shape is None:
         raise InvalidProblem("the scene has no [object] to displace")
@@ -49,6 +62,12 @@ def displaced(problem: Problem, dx: float, dy: float, yaw: float = 0.0) -> Probl
 
 def check_scene(scene: str | Path) -> Problem:
     """Load a scene and refuse what the experiment cannot run on.
+
+    Args:
+        scene: The scene file.
+
+    Returns:
+        The loaded problem.
 
     Raises:
         InvalidProblem: No ``[object]``, a robot without hand joints, or a hand that has
@@ -78,6 +97,16 @@ def plan_nominal(
 ) -> tuple[dict[str, Any], GraspPlanningSetup | None, Plan | None]:
     """A sweep task's plan, made once at the nominal pose (shared by the kinematic and
     the physics execution).
+
+    Args:
+        seed: The planning seed.
+        scene: The scene file.
+        u: The hand law's ``u`` (unitless, in ``[0, 1]``).
+        planner: A planner name (:data:`~openup_ompl.planning_options.PLANNERS`).
+        time_limit: Planning time [s].
+        perturbations: The ``(dx [m], dy [m], yaw [rad])`` cells the plan is executed at.
+        open_arrival: Plan with the law's open-arrival variant.
+        failed: The execution's own trial fields, as a failed trial holds them.
 
     Returns:
         The task's record (``u, seed, planned, error``; with ``solve_time, rows`` once
@@ -118,6 +147,12 @@ def robustness_run(
     """Plan once at the nominal pose, then execute against every perturbation (inside a
     task process).
 
+    Args:
+        seed, scene, u, planner, time_limit, perturbations, open_arrival: As for
+            :func:`plan_nominal`.
+        friction: Coulomb friction coefficient of the finger contacts (unitless).
+        torsion: Soft-finger torsional friction lever [m]; ``None``: the robot's.
+
     Returns:
         ``{"u", "seed", "planned", "error", "solve_time", "trials": [...]}``; each trial
         has ``dx, dy, yaw, collision, collision_row, pairs, force_closure, enclosed,
@@ -149,6 +184,14 @@ def execute(
 ) -> tuple[dict[str, Any], GraspResult]:
     """Execute one plan against the object displaced by ``(dx, dy, yaw)``: re-check every
     row against the true scene, then close the hand at the end of the plan.
+
+    Args:
+        setup: The setup the plan was made with (nominal object pose).
+        plan: The plan.
+        dx, dy: Position error [m] along the world x and y axes.
+        yaw: Rotation error [rad] about the object's own z axis.
+        friction: Coulomb friction coefficient of the finger contacts (unitless).
+        torsion: Soft-finger torsional friction lever [m] (``0``: point contacts).
 
     Returns:
         The trial (``dx, dy, yaw, collision, collision_row, collision_d, pairs,
