@@ -124,7 +124,14 @@ class StateChecker:
         self._known_valid: dict[bytes, float] = {}
 
     def normalized_distance(self, arm: np.ndarray) -> float:
-        """Normalised palm-to-grasp distance ``d`` (Algorithm 1) of an arm configuration."""
+        """Normalised palm-to-grasp distance ``d`` (Algorithm 1) of an arm configuration.
+
+        Args:
+            arm: Arm configuration [rad], shape ``(dof,)``.
+
+        Returns:
+            ``d`` (unitless; 1 at the start, 0 at the grasp pose).
+        """
         context = self.world.context()
         context.q[self._arm_sel] = arm
         return self._palm_distance(context.data, context.q)
@@ -136,7 +143,14 @@ class StateChecker:
         return self.robot.palm_placement(context.data, context.q).translation.tolist()
 
     def coupled_q(self, arm: np.ndarray) -> np.ndarray:
-        """Full configuration for an arm configuration, the hand set by the law (a copy)."""
+        """Full configuration for an arm configuration, the hand set by the law.
+
+        Args:
+            arm: Arm configuration [rad], shape ``(dof,)``.
+
+        Returns:
+            A new Pinocchio configuration, shape ``(nq,)``.
+        """
         context = self.world.context()
         self._fill(context, arm)
         return context.q.copy()
@@ -177,6 +191,12 @@ class StateChecker:
         An arm configuration given as a float64 array and found free is remembered (up to
         :data:`KNOWN_VALID_MAX`, then forgotten at once), and not checked again: the
         motions checked later from or to it read its ``d`` and its verdict back.
+
+        Args:
+            arm: Arm configuration [rad], any sequence of ``dof`` floats.
+
+        Returns:
+            ``True`` if it is collision-free.
         """
         return self._check_state(arm)[0]
 
@@ -200,7 +220,16 @@ class StateChecker:
         return free, d
 
     def is_valid_with_hand(self, arm: np.ndarray, hand: np.ndarray) -> bool:
-        """Whether the arm configuration with the given hand is collision-free."""
+        """Whether the arm configuration with the given hand is collision-free.
+
+        Args:
+            arm: Arm configuration [rad], shape ``(dof,)``.
+            hand: Hand joint values [rad; m for prismatic joints] in the robot's hand
+                order, shape ``(hand dof,)``.
+
+        Returns:
+            ``True`` if it is collision-free with the finest margin.
+        """
         self.states_checked += 1
         return not self.finest_world.in_collision(self.robot.full_q(arm, hand))
 
