@@ -84,7 +84,15 @@ class ResolutionBound:
     def on_plateau(self, da: float, db: float, spread: float) -> bool:
         """Whether ``d`` stays above ``mga`` all along a motion whose ends have ``d`` =
         ``da`` and ``db`` and along which ``d`` changes by at most ``spread`` per unit of
-        ``t``: ``d >= (da + db - spread) / 2`` everywhere on it."""
+        ``t``: ``d >= (da + db - spread) / 2`` everywhere on it.
+
+        Args:
+            da, db: ``d`` at the motion's ends (unitless).
+            spread: Bound on the change of ``d`` per unit of ``t`` (unitless).
+
+        Returns:
+            ``True`` if the hand is certainly on the law's plateau all along.
+        """
         return 0.5 * (da + db - spread) > self._mga
 
     def local_spread(
@@ -95,7 +103,16 @@ class ResolutionBound:
         at most ``spread`` (the global bound), tightened by the palm's displacement between
         the ends plus half a bound of its acceleration
         (:func:`~openup_ompl.motion_bound.local_rate_terms`). Near the grasp a short
-        motion moves the palm nearly straight, and the fingers' share shrinks with it."""
+        motion moves the palm nearly straight, and the fingers' share shrinks with it.
+
+        Args:
+            abs_delta: ``|b - a|`` [rad], shape ``(dof,)``.
+            spread: The global bound on the change of ``d`` per unit of ``t`` (unitless).
+            palm_a, palm_b: The palm's positions [m, world frame] at ``a`` and ``b``.
+
+        Returns:
+            The tightened bound on the change of ``d`` per unit of ``t`` (unitless).
+        """
         if self.local_terms is None:
             return spread
         second, rotation = self.local_terms
@@ -111,7 +128,18 @@ class ResolutionBound:
         by the arm joints' placements at its two ends (``(dof, 4, 4)`` homogeneous
         matrices) and the bodies' ``curvature``
         (:func:`~openup_ompl.motion_bound.local_reach`), never below
-        :data:`ARM_TIGHTEN_FLOOR` times ``arm``."""
+        :data:`ARM_TIGHTEN_FLOOR` times ``arm``.
+
+        Args:
+            frames_a, frames_b: Arm joints' placements at the motion's ends, world frame,
+                shape ``(dof, 4, 4)``, in ``spec.arm_joints`` order.
+            curvature: The bodies' curvature terms
+                (:func:`~openup_ompl.motion_bound.body_curvature`).
+            arm: The arm's global share of the bound [m per unit of ``t``].
+
+        Returns:
+            The tightened share [m per unit of ``t``].
+        """
         assert self.bodies is not None
         local = local_reach(self.bodies, frames_a, frames_b, curvature)
         return min(arm, max(local, ARM_TIGHTEN_FLOOR * arm))
@@ -119,5 +147,14 @@ class ResolutionBound:
     def segment_count(self, delta: np.ndarray, resolution: float, weights: np.ndarray) -> int:
         """Number of steps a motion of joint displacement ``delta`` is cut into so that no
         robot point moves more than ``resolution`` [m] between checked states, in the
-        bound of ``weights``."""
+        bound of ``weights``.
+
+        Args:
+            delta: Joint displacement ``b - a`` [rad], shape ``(dof,)``.
+            resolution: Largest move of a robot point per step [m].
+            weights: Per-joint weights [m/rad], shape ``(dof,)``.
+
+        Returns:
+            The number of steps (at least 1).
+        """
         return max(1, math.ceil(float(np.abs(delta) @ weights) / resolution))
