@@ -30,8 +30,15 @@ GRASP_ROTATION_TOLERANCE = MAX_ROTATION_TOLERANCE
 
 
 def number_rows(value: Any, where: str, width: int) -> np.ndarray:
-    """``value`` (a non-empty list of rows of ``width`` finite numbers) as an
-    ``(N, width)`` array.
+    """Check a table of numbers.
+
+    Args:
+        value: A non-empty list (or 2-D numeric array) of rows of ``width`` finite numbers.
+        where: The name errors give ``value``.
+        width: The length every row must have.
+
+    Returns:
+        ``value`` as a float array, shape ``(N, width)``.
 
     Raises:
         ConfigError: Not such a list, naming the first bad row or value
@@ -60,8 +67,20 @@ def number_rows(value: Any, where: str, width: int) -> np.ndarray:
 
 
 def path_within_limits(value: Any, where: str, model: pin.Model) -> np.ndarray:
-    """A plan's ``path``: rows of ``model.nq`` finite joint values within the joint limits
-    (:data:`LIMIT_TOLERANCE`), or a ConfigError naming the row, the joint and its limits."""
+    """Check a plan's ``path``: rows of ``model.nq`` finite joint values within the joint
+    limits (:data:`LIMIT_TOLERANCE`).
+
+    Args:
+        value: The path, rows of joint values [rad; m for prismatic joints].
+        where: The name errors give ``value``.
+        model: The robot's Pinocchio model.
+
+    Returns:
+        The path as a float array, shape ``(N, nq)``.
+
+    Raises:
+        ConfigError: A bad row or value, naming the row, the joint and its limits.
+    """
     path = number_rows(value, where, model.nq)
     columns = [model.names[i] for i in range(1, model.njoints) for _ in range(model.joints[i].nq)]
     low, high = model.lowerPositionLimit, model.upperPositionLimit
@@ -87,7 +106,23 @@ def check_ends(
 ) -> None:
     """A plan's path must leave from its ``start`` (when the file names one) and end with
     the palm at its grasp pose: a path edited, reversed or cut short would otherwise be
-    drawn and executed as the plan for that grasp."""
+    drawn and executed as the plan for that grasp.
+
+    Args:
+        path: Full configurations [rad; m for prismatic joints], shape ``(N, nq)``.
+        start: The arm's start configuration [rad], shape ``(dof,)``, or ``None``.
+        arm_idx: Indices of the arm joints in ``q``.
+        model: The robot's Pinocchio model.
+        palm_frame_id: Pinocchio frame index of the palm.
+        grasp_pose: The palm's grasp pose in the world frame, ``(x, y, z, qx, qy, qz, qw)``
+            [m, unit quaternion].
+        where: Prefix of error locations.
+
+    Raises:
+        ConfigError: ``path[0]``'s arm is not ``start`` (within :data:`LIMIT_TOLERANCE`),
+            or the last row's palm is not at ``grasp_pose`` (within
+            :data:`GRASP_POSITION_TOLERANCE` and :data:`GRASP_ROTATION_TOLERANCE`).
+    """
     if start is not None and np.max(np.abs(path[0, arm_idx] - start)) > LIMIT_TOLERANCE:
         raise ConfigError(
             f"{where}path[0]",
@@ -139,6 +174,23 @@ def check_hand(
     from the grasp pose, so the grasp pose may be that far from the one the plan was made
     for: a row's hand may be anything the law gives over the span of ``d`` that allows,
     plus :data:`HAND_TOLERANCE`.
+
+    Args:
+        path: Full configurations [rad; m for prismatic joints], shape ``(N, nq)``.
+        law: The file's hand law.
+        start_distance: The start palm's distance from the grasp [m] (the law's kind of
+            distance), or ``None``: the one at ``path[0]``.
+        model: The robot's Pinocchio model.
+        hand_idx: Indices of the hand joints in ``q``.
+        hand_joints: The hand joints' names, in the law's order.
+        palm_frame_id: Pinocchio frame index of the palm.
+        grasp_pose: The palm's grasp pose in the world frame, ``(x, y, z, qx, qy, qz, qw)``
+            [m, unit quaternion].
+        where: Prefix of error locations.
+
+    Raises:
+        ConfigError: A row's hand is not the law's, or (``start_distance`` ``None``)
+            ``path[0]``'s palm is closer than :data:`MIN_START_PALM_DISTANCE` to the grasp.
     """
     hands = path[:, hand_idx]
     if law.fixed_clipped is not None:
