@@ -18,9 +18,18 @@ from openup_ompl.validity import CoupledChecker
 
 
 def densify(checker: CoupledChecker, waypoints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Full configurations ``(N, nq)`` along ``waypoints`` (arm states, ``(M, dof)``) at
-    the checker's resolution, the hand from the law at every row; and for each row the
-    index of the motion it ends on (0 for the start row)."""
+    """Full configurations along ``waypoints`` at the checker's resolution, the hand from
+    the law at every row; and for each row the index of the motion it ends on.
+
+    Args:
+        checker: The coupled checker the waypoints were planned with.
+        waypoints: Arm configurations [rad], shape ``(M, dof)``.
+
+    Returns:
+        ``(path, segment)``: full configurations [rad; m for prismatic joints], shape
+        ``(N, nq)``, and for each row the index of its motion, shape ``(N,)`` (0 for the
+        start row).
+    """
     arms = [waypoints[:1]]
     segment = [np.zeros(1, dtype=np.intp)]
     for i, (a, b) in enumerate(zip(waypoints[:-1], waypoints[1:], strict=True)):
@@ -35,7 +44,16 @@ def rows_to_verify(
 ) -> np.ndarray:
     """The rows of a densified path (:func:`densify`) to check again: every waypoint row
     and every row of a motion the checker did not certify (rows inside certified motions
-    need no second check)."""
+    need no second check).
+
+    Args:
+        checker: The coupled checker that checked the motions.
+        waypoints: Arm configurations [rad], shape ``(M, dof)``.
+        segment: Each densified row's motion index, from :func:`densify`, shape ``(N,)``.
+
+    Returns:
+        Sorted row indices into the densified path.
+    """
     certified = np.array(
         [checker.is_certified(a, b) for a, b in zip(waypoints[:-1], waypoints[1:], strict=True)]
     )
@@ -57,6 +75,13 @@ def verify_path(
     (:data:`~openup_ompl.robot.LIMIT_TOLERANCE`) at every row, and collide nowhere in
     the checker's finest world (at ``rows`` only, if given). Whether the hand follows the
     law is not checked.
+
+    Args:
+        problem: The problem the path was planned for.
+        checker: Its coupled checker.
+        task_error: Palm's distance [m] to the grasp pose for an arm configuration [rad].
+        path: Full configurations [rad; m for prismatic joints], shape ``(N, nq)``.
+        rows: Indices of the rows to check for collision (``None``: all).
 
     Raises:
         ConfigError: ``path`` is not a non-empty array of rows of ``nq`` finite numbers,
