@@ -20,7 +20,14 @@ from openup_ompl.validity import CoupledChecker, CoupledMotionValidator, Coupled
 
 
 def arm_state_space(robot: Robot) -> ob.RealVectorStateSpace:
-    """OMPL's state space of a robot's arm joints, bounded by their limits."""
+    """OMPL's state space of a robot's arm joints, bounded by their limits.
+
+    Args:
+        robot: The robot.
+
+    Returns:
+        A ``RealVectorStateSpace`` of dimension ``dof``, one axis per arm joint [rad].
+    """
     dof = robot.arm_idx.size
     space = ob.RealVectorStateSpace(dof)
     bounds = ob.RealVectorBounds(dof)
@@ -35,8 +42,15 @@ def coupled_simple_setup(
     space: ob.RealVectorStateSpace, checker: CoupledChecker
 ) -> tuple[og.SimpleSetup, CoupledValidityChecker, CoupledMotionValidator]:
     """A ``og.SimpleSetup`` on ``space`` whose states and motions ``checker`` checks, with
-    a path-length objective that any solution satisfies; also its validity checker and
-    motion validator."""
+    a path-length objective that any solution satisfies.
+
+    Args:
+        space: The arm's state space (:func:`arm_state_space`).
+        checker: The coupled check of states and motions.
+
+    Returns:
+        ``(simple_setup, validity_checker, motion_validator)``.
+    """
     simple_setup = og.SimpleSetup(space)
     si = simple_setup.getSpaceInformation()
     validity_checker = CoupledValidityChecker(si, checker)
@@ -57,6 +71,11 @@ def coupled_simple_setup(
 
 def set_start(simple_setup: og.SimpleSetup, problem: Problem, checker: CoupledChecker) -> None:
     """Set ``problem.start`` as the start state of ``simple_setup``.
+
+    Args:
+        simple_setup: The setup (:func:`coupled_simple_setup`).
+        problem: The problem whose start arm configuration [rad] is set.
+        checker: The coupled checker the start is checked with.
 
     Raises:
         InvalidProblem: The start is outside the joint limits, or collides (the pairs

@@ -79,7 +79,8 @@ def verify_path(
     Args:
         problem: The problem the path was planned for.
         checker: Its coupled checker.
-        task_error: Palm's distance [m] to the grasp pose for an arm configuration [rad].
+        task_error: The palm's task-space distance to the grasp pose [m, rotation
+            weighted] of an arm configuration (:meth:`~openup_ompl.goal.GraspGoal.task_error`).
         path: Full configurations [rad; m for prismatic joints], shape ``(N, nq)``.
         rows: Indices of the rows to check for collision (``None``: all).
 
