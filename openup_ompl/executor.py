@@ -59,8 +59,16 @@ SEED_LIMIT = 2**31
 
 
 def check_generator_seed(seed: int, where: str = "seed") -> int:
-    """``seed`` if it is an integer below :data:`SEED_LIMIT`, else a :class:`ConfigError`
-    naming ``where``."""
+    """Check a seed of numpy's and OMPL's generators.
+
+    Args:
+        seed: The seed.
+        where: The name errors give it.
+    Returns:
+        ``seed`` as a Python ``int``.
+    Raises:
+        ConfigError: ``seed`` is not an integer in ``[0, SEED_LIMIT)``.
+    """
     if not (is_integer(seed) and 0 <= seed < SEED_LIMIT):
         raise ConfigError(where, seed, "an integer seed in [0, 2^31)")
     return int(seed)
@@ -70,6 +78,10 @@ def check_seeds(first: int, count: int, most: int, where: str) -> None:
     """Refuse a run of seeds ``first, ..., first + count - 1`` (``where`` names ``count``)
     that is empty, longer than ``most`` or reaches :data:`SEED_LIMIT`.
 
+    Args:
+        first, count: The first seed and the number of seeds.
+        most: The largest ``count`` accepted.
+        where: The name errors give ``count``.
     Raises:
         ConfigError: Naming ``where``, ``seed`` or their sum.
     """
@@ -96,6 +108,11 @@ def check_scheduler(address: str, where: str = "scheduler") -> str:
     says the extra is missing). Dask takes no default port (``bogus`` failed in its
     connection code with ``missing port number``).
 
+    Args:
+        address: The scheduler's address, e.g. ``tcp://host:8786``.
+        where: The name errors give it.
+    Returns:
+        ``address`` unchanged.
     Raises:
         ConfigError: Not such an address, naming ``where``, the address and why.
     """
