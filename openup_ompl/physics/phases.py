@@ -26,7 +26,15 @@ REACH_TAIL = 0.1
 
 
 def settle(monitor: Monitor, seconds: float) -> float:
-    """The object rests where it really is, the robot at the plan's first row."""
+    """The object rests where it really is, the robot at the plan's first row.
+
+    Args:
+        monitor: The rollout's monitor.
+        seconds: Nominal duration [s] of simulated time.
+
+    Returns:
+        The phase's duration [s]: ``seconds``, or less if the rollout ended in it.
+    """
     monitor.phase, monitor.phase_start = "settle", monitor.steps
     monitor.run_for(seconds)
     return _duration(monitor, seconds, round(seconds / monitor.dt))
@@ -75,7 +83,14 @@ class Reach:
         self.hand_error = 0.0
 
     def run(self, monitor: Monitor) -> float:
-        """Drive the targets along the timed path; returns the duration [s]."""
+        """Drive the targets along the timed path.
+
+        Args:
+            monitor: The rollout's monitor.
+
+        Returns:
+            The phase's duration [s] (shorter if the rollout ended in it).
+        """
         monitor.phase, monitor.phase_start = "reach", monitor.steps
         world, sim, ctrl = monitor.world, monitor.sim, monitor.ctrl
         plan, qpos = self.plan, world.qpos
@@ -129,7 +144,14 @@ class Closing:
             ctrl[follower] = multiplier * ctrl[leader] + off
 
     def close(self, monitor: Monitor) -> float:
-        """Move the targets to the closed configuration; returns the duration [s]."""
+        """Move the targets to the closed configuration.
+
+        Args:
+            monitor: The rollout's monitor.
+
+        Returns:
+            The phase's duration [s] (shorter if the rollout ended in it).
+        """
         monitor.phase, monitor.phase_start = "close", monitor.steps
         steps = math.ceil(self.duration / monitor.dt)
         for k in range(steps):
@@ -140,8 +162,15 @@ class Closing:
         return _duration(monitor, steps * monitor.dt, steps)
 
     def squeeze(self, monitor: Monitor, seconds: float) -> float:
-        """Hold the closed targets for ``seconds`` [s]: each joint presses on what
-        stopped it. Returns the duration [s]."""
+        """Hold the closed targets: each joint presses on what stopped it.
+
+        Args:
+            monitor: The rollout's monitor.
+            seconds: Nominal duration [s] of simulated time.
+
+        Returns:
+            The phase's duration [s]: ``seconds``, or less if the rollout ended in it.
+        """
         monitor.phase, monitor.phase_start = "squeeze", monitor.steps
         steps = round(seconds / monitor.dt)
         for _ in range(steps):
@@ -176,7 +205,14 @@ class LiftTargets:
         self.top = at[steps]
 
     def at(self, k: int) -> np.ndarray:
-        """Arm target at lift step ``k``."""
+        """Arm target at lift step ``k``.
+
+        Args:
+            k: The step (``0`` the start, ``steps`` the top; clamped beyond).
+
+        Returns:
+            The arm joints' target [rad or m], shape ``(len(arm),)``.
+        """
         last = len(self.rows) - 1
         s = min(1.0, k / self.steps)
         x = s * s * (3 - 2 * s) * last
@@ -198,7 +234,14 @@ class Lift:
         self.arm_error = 0.0
 
     def run(self, monitor: Monitor) -> float:
-        """Drive the arm up; returns the duration [s]. The targets end at the top."""
+        """Drive the arm up; the targets end at the top.
+
+        Args:
+            monitor: The rollout's monitor.
+
+        Returns:
+            The phase's duration [s] (shorter if the rollout ended in it).
+        """
         monitor.phase, monitor.phase_start = "lift", monitor.steps
         world, sim, ctrl, plan = monitor.world, monitor.sim, monitor.ctrl, self.plan
         qpos = world.qpos[plan.arm]
@@ -219,7 +262,15 @@ class Lift:
 
 
 def hold(monitor: Monitor, seconds: float) -> float:
-    """The targets stay at the top for ``seconds`` [s]."""
+    """The targets stay at the top.
+
+    Args:
+        monitor: The rollout's monitor.
+        seconds: Nominal duration [s] of simulated time.
+
+    Returns:
+        The phase's duration [s]: ``seconds``, or less if the rollout ended in it.
+    """
     monitor.phase, monitor.phase_start = "hold", monitor.steps
     monitor.run_for(seconds)
     return _duration(monitor, seconds, round(seconds / monitor.dt))
