@@ -21,7 +21,14 @@ DROPPED_RISE = 0.01
 
 
 def pose_change(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
-    """Translation [m] and rotation angle [rad] between two ``(4, 4)`` transforms."""
+    """Translation and rotation angle between two rigid transforms.
+
+    Args:
+        a, b: Homogeneous transforms, shape ``(4, 4)`` [m], in the same frame.
+
+    Returns:
+        ``(distance [m], angle [rad])`` of ``a^-1 b`` (angle in ``[0, pi]``).
+    """
     delta = np.linalg.inv(a) @ b
     cos = (np.trace(delta[:3, :3]) - 1) / 2
     return float(np.linalg.norm(delta[:3, 3])), float(math.acos(min(1.0, max(-1.0, cos))))
@@ -30,7 +37,16 @@ def pose_change(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
 def final_contacts(sim: Any, world: World) -> tuple[set[tuple[str, str]], bool]:
     """The contacts at the end as ``(link or object, other)`` name pairs (robot with the
     object, an obstacle or a neighbour; the object with an obstacle), and whether a robot
-    link holds the object."""
+    link holds the object.
+
+    Args:
+        sim: The MuJoCo data (``mujoco.MjData``) at the end of the rollout.
+        world: The physics world it simulates.
+
+    Returns:
+        ``(pairs, holding)``: the set of name pairs and whether a robot link touches the
+        object.
+    """
     kinds, links = world.geom_kind, world.geom_link
     final = set()
     holding = False
@@ -56,7 +72,19 @@ def disturbance(
     touched: dict[str, Any] | None,
 ) -> dict[str, Any]:
     """How a neighbour moved between two world transforms: its displacement, the turn of
-    its up axis (its own z) and the thresholds' verdicts."""
+    its up axis (its own z) and the thresholds' verdicts.
+
+    Args:
+        name: The neighbour's name.
+        start, end: Its world transforms, shape ``(4, 4)`` [m], before and after.
+        options: The thresholds (``neighbour_moved_distance`` [m],
+            ``neighbour_tipped_angle`` [rad]).
+        touched: The robot's first contact with it, or ``None``.
+
+    Returns:
+        ``{"name", "moved_mm", "tilt_deg", "moved", "tipped", "touched"}`` (displacement
+        [mm], tilt [deg], the two verdicts and ``touched``).
+    """
     moved = float(np.linalg.norm(end[:3, 3] - start[:3, 3]))
     cos = float(np.dot(start[:3, 2], end[:3, 2]))
     tilt = math.acos(min(1.0, max(-1.0, cos)))
@@ -94,9 +122,18 @@ class Outcome:
 def judge(
     monitor: Monitor, outcome: Outcome, options: PhysicsOptions, name: str
 ) -> tuple[str | None, str]:
-    """The failure cause that applies first (``None``: held) and the verdict's line.
+    """The failure cause that applies first and the verdict's line.
 
-    ``name`` is the object's; ``monitor`` the rollout's, at its end.
+    Args:
+        monitor: The rollout's monitor, at its end.
+        outcome: What the end shows.
+        options: The thresholds of success.
+        name: The object's name.
+
+    Returns:
+        ``(cause, line)``: the cause (``None``: held; else ``"obstacle contact"``,
+        ``"jammed"``, ``"fell"``, ``"dropped"``, ``"no contact"``, ``"not lifted"`` or
+        ``"slipped"``) and the verdict for people.
     """
     obstacle_contacts = sorted(monitor.obstacles.values(), key=lambda c: c["time_s"])
     lifted = outcome.object_rise >= options.lifted_fraction * options.lift_height
