@@ -31,6 +31,17 @@ def closed_configuration(
     ``closing_speed`` (``"robot file"``, when ``spec``'s hand joints lead
     ``hand_joints``), else each joint's limit on ``c``'s side of ``w`` (``"c/w"``).
 
+    Args:
+        c, w: The hand law's close preshape and widest open configuration [rad or m],
+            shape ``(hand dof,)``.
+        world: The physics world.
+        spec: The robot file's spec, or ``None``.
+        hand_joints: The plan's hand joint names, in order.
+
+    Returns:
+        ``(closed [rad or m], speed [rad/s or m/s], source)``, the first two of shape
+        ``(hand dof,)``; ``closed`` is within the joint limits.
+
     Raises:
         ConfigError: ``c`` or ``w`` without one value per hand joint.
     """
@@ -58,7 +69,18 @@ def closed_configuration(
 
 def closed_targets(data: dict[str, Any], world: World) -> tuple[np.ndarray, np.ndarray, str]:
     """:func:`closed_configuration` of a plan file's contents (its law's ``c`` and ``w``,
-    the robot file found by its robot's name)."""
+    the robot file found by its robot's name).
+
+    Args:
+        data: A plan file's contents.
+        world: The physics world built from it.
+
+    Returns:
+        As :func:`closed_configuration`.
+
+    Raises:
+        ConfigError: The law's ``c`` or ``w`` is not one number per hand joint.
+    """
     law = data.get("hand_law") or {}
     robot = data.get("robot") or {}
     c, w = law.get("c", []), law.get("w", [])
@@ -76,6 +98,16 @@ def lift_rows(world: World, q: np.ndarray, height: float, step: float = 0.005) -
 
     Damped least squares on MuJoCo's body Jacobian of the palm link (the same kinematics
     the simulation runs), each row refined from the previous one.
+
+    Args:
+        world: The physics world.
+        q: The configuration the lift starts from (plan joint order) [rad or m].
+        height: The palm's rise [m].
+        step: The rise between rows [m].
+
+    Returns:
+        Configurations, shape ``(count + 1, len(q))`` with ``count = ceil(height / step)``;
+        row 0 is ``q``.
     """
     import mujoco
 
@@ -117,7 +149,17 @@ def lift_rows(world: World, q: np.ndarray, height: float, step: float = 0.005) -
 
 def displaced_pose(pose: np.ndarray, dx: float, dy: float, yaw: float) -> np.ndarray:
     """``[x, y, z, qw, qx, qy, qz]`` (MuJoCo's free-joint order) of a scene pose moved by
-    ``(dx, dy)`` in the world and turned by ``yaw`` about its own z axis."""
+    ``(dx, dy)`` in the world and turned by ``yaw`` about its own z axis.
+
+    Args:
+        pose: The scene pose ``[x, y, z, qx, qy, qz, qw]`` [m, unit quaternion], world
+            frame.
+        dx, dy: Position error [m] along the world x and y axes.
+        yaw: Rotation error [rad] about the pose's own z axis.
+
+    Returns:
+        The displaced pose, shape ``(7,)``, in MuJoCo's order.
+    """
     import mujoco
 
     from openup_ompl.physics.shapes import mujoco_quat
