@@ -104,7 +104,7 @@ class Plan:
         """Write the plan file (JSON, README, Files: Plan), atomically; returns its path.
 
         Args:
-            path: The file to write (a :class:`ConfigError` if it is a directory).
+            path: The file to write (a :class:`~openup_ompl.exceptions.ConfigError` if a directory).
         """
         if not isinstance(path, (str, os.PathLike)) or Path(path).is_dir():
             raise ConfigError("plan file", path, "a path to a file to write")

@@ -71,6 +71,13 @@ def urdf_spec(urdf: str | Path, package_dirs: list[str]) -> tuple[mujoco.MjSpec,
     """MuJoCo spec of a URDF (meshes made absolute, :data:`COMPILER` added) and its
     parsed tree.
 
+    Args:
+        urdf: The URDF file.
+        package_dirs: Directories ``package://`` mesh paths are resolved in.
+
+    Returns:
+        ``(spec, root)``: the MuJoCo spec and the URDF's XML root element.
+
     Raises:
         ConfigError: The URDF is missing or unreadable, or MuJoCo rejects it.
     """
@@ -94,6 +101,12 @@ def urdf_spec(urdf: str | Path, package_dirs: list[str]) -> tuple[mujoco.MjSpec,
 
 def plan_shapes(data: dict[str, Any]) -> tuple[list[Shape], Shape]:
     """The obstacles and the object of a plan file's ``scene`` (validated as scene keys).
+
+    Args:
+        data: A plan file's contents.
+
+    Returns:
+        ``(obstacles, object)``, poses in the world frame.
 
     Raises:
         ConfigError: A malformed shape, or a plan with no object.
@@ -189,6 +202,14 @@ def _joint_limits(root: ET.Element) -> dict[str, tuple[float, float]]:
 def build_world(data: dict[str, Any], options: PhysicsOptions | None = None) -> World:
     """The physics world of a plan file's contents (:func:`~openup_ompl.plan.read_plan`).
 
+    Args:
+        data: A plan file's contents.
+        options: The physics settings (default
+            :class:`~openup_ompl.physics.options.PhysicsOptions`).
+
+    Returns:
+        The world.
+
     Raises:
         ConfigError: A missing URDF, a joint or the palm frame absent from it, or a
             malformed scene.
@@ -206,6 +227,16 @@ def make_world(
 ) -> World:
     """The physics world of a robot and a scene: the robot, the object, the neighbours
     (movable obstacles) and the contacts between them (module docstring).
+
+    Args:
+        robot: The robot's joints, palm and URDF.
+        obstacles: The scene's obstacles (movable ones become neighbours).
+        scene_object: The object to grasp, at its nominal pose.
+        options: The physics settings (default
+            :class:`~openup_ompl.physics.options.PhysicsOptions`).
+
+    Returns:
+        The world.
 
     Raises:
         ConfigError: A missing URDF, a joint or the palm frame absent from it.
