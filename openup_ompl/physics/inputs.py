@@ -58,7 +58,19 @@ class PlanInput:
     @classmethod
     def from_plan(cls, plan: Plan, scene_object: Shape | None = None) -> PlanInput:
         """A plan in memory, with its problem's robot (its robot file as loaded) and
-        scene; ``scene_object`` replaces the object (the world's truth)."""
+        scene.
+
+        Args:
+            plan: The plan.
+            scene_object: The object where it really is (the world's truth); ``None``:
+                the problem's object.
+
+        Returns:
+            The rollout's input.
+
+        Raises:
+            ConfigError: No object to grasp.
+        """
         problem = plan.problem
         target = scene_object if scene_object is not None else problem.object
         if target is None:
@@ -90,7 +102,17 @@ class PlanInput:
     @classmethod
     def from_file(cls, plan: PlanFile) -> PlanInput:
         """A plan file as read (:meth:`~openup_ompl.plan.PlanFile.read`); its robot file
-        is found by its robot's name."""
+        is found by its robot's name.
+
+        Args:
+            plan: The plan file.
+
+        Returns:
+            The rollout's input.
+
+        Raises:
+            ConfigError: No object to grasp, or the law's ``c``/``w`` are not numbers.
+        """
         data = plan.contents
         if plan.object is None:
             raise ConfigError("plan scene.object", None, "an object to grasp")
