@@ -50,7 +50,15 @@ def _pair_classes(kinds: np.ndarray) -> np.ndarray:
 
 
 def transform(sim: Any, body: int) -> np.ndarray:
-    """The ``(4, 4)`` world transform of a body."""
+    """The world transform of a body.
+
+    Args:
+        sim: The MuJoCo data (``mujoco.MjData``), kinematics up to date.
+        body: The body's index.
+
+    Returns:
+        Its homogeneous transform [m], world frame, shape ``(4, 4)``.
+    """
     t = np.eye(4)
     t[:3, :3] = sim.xmat[body].reshape(3, 3)
     t[:3, 3] = sim.xpos[body]
@@ -157,8 +165,11 @@ class Monitor:
             self._check_rest()
 
     def run_for(self, seconds: float) -> None:
-        """Step for ``seconds`` [s] of simulated time at constant targets (less if the
-        rollout ends early)."""
+        """Step at constant targets (less if the rollout ends early).
+
+        Args:
+            seconds: Simulated time [s]; rounded to whole timesteps.
+        """
         for _ in range(round(seconds / self.dt)):
             if self.ended is not None:
                 return

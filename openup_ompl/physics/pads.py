@@ -28,6 +28,11 @@ def add_pads(spec: mujoco.MjSpec, pads: tuple[PadSpec, ...], options: PhysicsOpt
     """Each pad a massless geom ``pad:<link>:<i>`` of its link's body, with its own
     friction and softness where it gives them (then it outranks the object's priority).
 
+    Args:
+        spec: The MuJoCo spec of the robot, changed in place.
+        pads: The robot file's pads (poses in their link's frame [m]).
+        options: The physics settings (the timestep [s] bounds a pad's softness).
+
     Raises:
         ConfigError: A pad on a link the URDF lacks.
     """
@@ -71,7 +76,11 @@ def pad_contacts(world: World) -> None:
     meets ``conaffinity`` of the other): fixed obstacles (1, 1); the object and the
     neighbours (5, 6); robot geoms (3, 0); a pad (2, 0): the object and neighbours only;
     a URDF geom of a pad's link that contains the pad's centre (1, 0): obstacles only.
-    Robot geoms never meet each other; every pair that met without pads still meets."""
+    Robot geoms never meet each other; every pair that met without pads still meets.
+
+    Args:
+        world: The physics world, its model's contact bits changed in place.
+    """
     from openup_ompl.physics.world import FIXED_ROBOT, NEIGHBOUR, OBJECT, ROBOT
 
     model, kinds = world.model, world.geom_kind
