@@ -65,7 +65,18 @@ def cached_world(
 ) -> World:
     """:func:`~openup_ompl.physics.world.make_world`, compiled once per key
     (:func:`_key`) and process: later calls get a copy of the kept model (a rollout may
-    change its copy) with this call's object and neighbour poses."""
+    change its copy) with this call's object and neighbour poses.
+
+    Args:
+        robot, obstacles, scene_object, options: As for
+            :func:`~openup_ompl.physics.world.make_world`.
+
+    Returns:
+        A world of its own, its object and neighbours at this call's poses.
+
+    Raises:
+        ConfigError: What :func:`~openup_ompl.physics.world.make_world` raises.
+    """
     import copy
 
     key = _key(robot, obstacles, scene_object, options)

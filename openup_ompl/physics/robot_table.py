@@ -15,7 +15,14 @@ __all__ = ["RobotTable", "robot_spec"]
 
 
 def robot_spec(name: str) -> RobotSpec | None:
-    """The shipped or installed robot file of ``name``, or ``None`` if none is found."""
+    """The shipped or installed robot file of a robot.
+
+    Args:
+        name: The robot's name.
+
+    Returns:
+        Its robot file, read; ``None`` if none is found or it does not load.
+    """
     from openup_ompl.robot_file import RobotSpec, find_robot_file
 
     try:
@@ -51,7 +58,14 @@ class RobotTable:
     @classmethod
     def from_table(cls, table: dict[str, Any]) -> RobotTable:
         """A plan file's ``robot`` table (missing keys read as empty), with the pads of the
-        robot file found by its name (none if no file is found)."""
+        robot file found by its name (none if no file is found).
+
+        Args:
+            table: The plan file's ``robot`` table.
+
+        Returns:
+            The table, typed (not checked: the world's build checks it).
+        """
         spec = robot_spec(str(table.get("name")))
         return cls(
             name=str(table.get("name")),
@@ -66,7 +80,14 @@ class RobotTable:
 
     @classmethod
     def from_robot(cls, robot: Any) -> RobotTable:
-        """A loaded :class:`~openup_ompl.robot.Robot`'s (what its plans' files hold)."""
+        """A loaded robot's table (what its plans' files hold).
+
+        Args:
+            robot: A loaded :class:`~openup_ompl.robot.Robot`.
+
+        Returns:
+            Its table.
+        """
         return cls(
             name=robot.spec.name,
             urdf=str(robot.urdf),

@@ -68,7 +68,16 @@ class Timed:
 
 def sample(timed: Timed, times: np.ndarray) -> np.ndarray:
     """:meth:`Timed.at` at each of ``times`` [s], as rows (the same arithmetic, vectorised:
-    the rows are equal to the last bit)."""
+    the rows are equal to the last bit).
+
+    Args:
+        timed: The timed path.
+        times: Times [s] from the path's start, shape ``(T,)``.
+
+    Returns:
+        Configurations [rad or m], shape ``(T, width)``; clamped to the first and last
+        rows outside the path's span.
+    """
     times = np.asarray(times, dtype=float)
     rows, knots, sdot = timed.rows, timed.times, timed.sdot
     i = np.searchsorted(knots, times, side="right")
