@@ -89,7 +89,14 @@ OFFSET_MAX = 1.0
 
 
 def check_offset(offset: Sequence[float]) -> tuple[float, float, float]:
-    """``(dx, dy, yaw)`` as floats.
+    """Check an object offset.
+
+    Args:
+        offset: ``(dx, dy, yaw)`` [m, m, rad]: the object's displacement along the world x
+            and y axes and its turn about its own z axis.
+
+    Returns:
+        ``(dx, dy, yaw)`` as floats.
 
     Raises:
         ConfigError: Not three finite numbers (metres, metres, radians), ``dx`` or
@@ -208,12 +215,23 @@ class Rollout:
     def run(
         self, offset: Sequence[float] = (0.0, 0.0, 0.0), seed: int = 0, frames: bool = True
     ) -> ExecutionRecord:
-        """Execute the plan with the object displaced by ``offset`` = ``(dx, dy, yaw)``
-        [m, m, rad]; ``frames`` keeps the sampled rollout for the viewer.
+        """Execute the plan with the object displaced.
 
         MuJoCo's warnings are caught while it runs (no ``MUJOCO_LOG.TXT`` in the working
         directory): those of a state it reset raise :class:`SimulationDiverged` with their
         text; the others are printed on stderr after the run, one line each.
+
+        Args:
+            offset: ``(dx, dy, yaw)`` [m, m, rad] (:func:`check_offset`).
+            seed: Seed of the object's jitter (``PhysicsOptions.object_jitter``).
+            frames: Keep the sampled rollout (and the plan's contents) for the viewer.
+
+        Returns:
+            The execution record: the verdict, its cause and what the rollout measured.
+
+        Raises:
+            ConfigError: A bad offset or seed.
+            SimulationDiverged: MuJoCo went unstable.
         """
         import mujoco
 
@@ -406,6 +424,19 @@ def execute_plan(
     ``offset`` then displacing the true object. The path is not re-validated against its
     scene here (``openup-ompl execute`` does it first:
     :func:`~openup_ompl.revalidate.revalidate_plan`).
+
+    Args:
+        plan: A plan file's path, a :class:`~openup_ompl.plan.Plan`, a
+            :class:`~openup_ompl.plan.PlanFile` or a plan file's contents.
+        offset: ``(dx, dy, yaw)`` [m, m, rad] (:func:`check_offset`).
+        seed: Seed of the object's jitter.
+        options: The physics settings (default
+            :class:`~openup_ompl.physics.options.PhysicsOptions`).
+        frames: Keep the sampled rollout for the viewer.
+        truth: The true scene or object, or ``None`` (the plan's object).
+
+    Returns:
+        The execution record.
 
     Raises:
         ConfigError: A non-finite offset; a file that is not ``openup-plan/1`` or fails
