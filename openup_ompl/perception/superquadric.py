@@ -39,7 +39,14 @@ ROTATION = slice(8, 11)
 
 
 def rotation_from_vector(vector: np.ndarray) -> np.ndarray:
-    """Rodrigues' formula: the rotation matrix of a rotation vector [rad]."""
+    """Rodrigues' formula: the rotation matrix of a rotation vector.
+
+    Args:
+        vector: Rotation vector (axis times angle [rad]), shape ``(3,)``.
+
+    Returns:
+        The rotation matrix, shape ``(3, 3)`` (first order below an angle of 1e-12 rad).
+    """
     angle = float(np.linalg.norm(vector))
     if angle < 1e-12:
         k = np.array(vector, dtype=float)
@@ -113,22 +120,51 @@ class Superquadric:
     rotation: np.ndarray
 
     def local(self, points: np.ndarray) -> np.ndarray:
-        """World points [m] in the superquadric's frame."""
+        """World points in the superquadric's frame.
+
+        Args:
+            points: Points [m], world frame, shape ``(n, 3)``.
+
+        Returns:
+            The points [m] in the superquadric's frame, shape ``(n, 3)``.
+        """
         return (np.asarray(points, dtype=float) - self.position) @ self.rotation
 
     def inside_outside(self, points: np.ndarray) -> np.ndarray:
-        """Solina-Bajcsy ``F`` at world points (1 on the surface)."""
+        """Solina-Bajcsy inside-outside function ``F`` at world points.
+
+        Args:
+            points: Points [m], world frame, shape ``(n, 3)``.
+
+        Returns:
+            ``F`` (unitless), shape ``(n,)``: below 1 inside, 1 on the surface, above 1
+            outside.
+        """
         e1, e2 = self.exponents
         return np.exp(_log_inside_outside(self.local(points), self.sizes, e1, e2))
 
     def distance(self, points: np.ndarray) -> np.ndarray:
-        """Signed first-order distance [m] of world points to the surface (positive
-        outside; see the module docstring)."""
+        """Signed first-order distance of world points to the surface (see the module
+        docstring).
+
+        Args:
+            points: Points [m], world frame, shape ``(n, 3)``.
+
+        Returns:
+            Distances [m], shape ``(n,)``, positive outside.
+        """
         e1, e2 = self.exponents
         return _distance(self.local(points), self.sizes, e1, e2)
 
     def surface(self, n: int = 24) -> np.ndarray:
-        """``(n, 2n, 3)`` world points on the surface (the parametric form), for figures."""
+        """World points on the surface (the parametric form), for figures.
+
+        Args:
+            n: Number of latitudes (``2 n`` longitudes).
+
+        Returns:
+            Points [m], world frame, shape ``(n, 2n, 3)``.
+        """
         e1, e2 = self.exponents
         local = _surface_local(self.sizes, e1, e2, _angles(n, 2 * n))
         return (local @ self.rotation.T + self.position).reshape(n, 2 * n, 3)
