@@ -60,6 +60,12 @@ def calibration_scene(name: str) -> Problem:
     """The LWA3 can scene with its object swapped for :data:`CALIBRATION_SHAPES`
     ``name``, standing where the can stands.
 
+    Args:
+        name: A key of :data:`CALIBRATION_SHAPES`.
+
+    Returns:
+        The scene, its object the named shape.
+
     Raises:
         ConfigError: An unknown name.
     """
@@ -94,13 +100,25 @@ class Coverage:
 
     def inside(self, level: float = 0.95) -> float:
         """The share of fitted views inside the reported ``level`` region (chi-square,
-        3 dof)."""
+        3 dof).
+
+        Args:
+            level: The region's probability, in ``(0, 1)``.
+
+        Returns:
+            The share in ``[0, 1]``; NaN when no view was fitted.
+        """
         from scipy.stats import chi2
 
         return float(np.mean(self.d2 <= chi2.ppf(level, 3))) if self.d2.size else math.nan
 
     def row(self) -> dict[str, Any]:
-        """The table's columns (coverage at 95 % with its Wilson interval)."""
+        """The table's columns (coverage at 95 % with its Wilson interval).
+
+        Returns:
+            ``views, fitted, inside_95, ci_low, ci_high, mean_error_mm, max_error_mm,
+            mean_u, refused`` (errors [mm]; NaN where no view was fitted).
+        """
         fitted = int(self.d2.size)
         hits = int(np.count_nonzero(self.d2 <= CHI2_3_95))
         low, high = wilson_interval(hits, fitted)
@@ -119,7 +137,16 @@ class Coverage:
 
 
 def wilson_interval(successes: int, trials: int, z: float = 1.959964) -> tuple[float, float]:
-    """The Wilson score interval (95 % by default) of a rate."""
+    """The Wilson score interval of a rate.
+
+    Args:
+        successes: Successes counted.
+        trials: Trials counted.
+        z: The standard normal quantile of the level (95 % by default).
+
+    Returns:
+        ``(low, high)`` in ``[0, 1]``; NaN for no trials.
+    """
     if trials == 0:
         return math.nan, math.nan
     p = successes / trials
@@ -142,11 +169,14 @@ def coverage(
 
     Args:
         problem: The scene; its object is where it truly is.
-        noise: The sensor noise scale.
+        noise: The sensor noise scale (multiplies the Kinect v1's standard deviations).
         views: Views to perceive.
         seed: Seed of view 0.
         options: The calibration errors and restarts (default: ``PerceptionOptions()``
             with one fit per view: the coverage is the covariance's, not the median's).
+
+    Returns:
+        Each fitted view's error [m] and Mahalanobis distance, and the refusals.
     """
     options = options or dataclasses.replace(PerceptionOptions(), restarts=1)
     assert problem.object is not None
@@ -189,7 +219,16 @@ def coverage_table(
 ) -> list[tuple[str, float, Coverage]]:
     """:func:`coverage` of every shape at every noise level; the ``k``-th level's views
     are seeded from ``seed + k * SEED_STRIDE`` (the same seeds at every level would draw
-    the same camera errors: one sample, not one per level)."""
+    the same camera errors: one sample, not one per level).
+
+    Args:
+        shapes: Keys of :data:`CALIBRATION_SHAPES`.
+        noises: Sensor noise scales.
+        views, seed, options: As for :func:`coverage`.
+
+    Returns:
+        ``(shape, noise, coverage)`` for each shape, then each noise level.
+    """
     return [
         (
             name,
