@@ -76,7 +76,11 @@ class PerceptionOptions:
     @classmethod
     def exact(cls) -> PerceptionOptions:
         """A perfectly calibrated camera and one fit: only the sensor noise (the error
-        model before these options existed)."""
+        model before these options existed).
+
+        Returns:
+            Options with zero calibration errors and one restart.
+        """
         return cls(
             camera_position_sigma=0.0, camera_angle_sigma=0.0, depth_bias_sigma=0.0, restarts=1
         )
@@ -84,7 +88,11 @@ class PerceptionOptions:
     @classmethod
     def legacy(cls) -> PerceptionOptions:
         """The sensor noise alone and the shape's parameters free in the covariance: the
-        estimator before these options existed."""
+        estimator before these options existed.
+
+        Returns:
+            :meth:`exact`'s options with ``size_sigma = 0``.
+        """
         return dataclasses.replace(cls.exact(), size_sigma=0.0)
 
 
@@ -104,12 +112,29 @@ class CameraError:
     depth_bias: float
 
     def believed(self, position: np.ndarray, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The believed camera position and orientation from the true ones."""
+        """The believed camera position and orientation from the true ones.
+
+        Args:
+            position: True camera position [m], world frame, shape ``(3,)``.
+            rotation: True camera orientation (world from camera), shape ``(3, 3)``.
+
+        Returns:
+            ``(position [m], rotation)``, believed, in the same frames.
+        """
         return position + self.position, np.asarray(pin.exp3(self.rotation)) @ rotation
 
     def apply(self, points: np.ndarray, position: np.ndarray, rotation: np.ndarray) -> np.ndarray:
         """World points [m] measured by the true camera (``position``, ``rotation``) as
-        the robot places them: depth offset by the bias, then moved by the believed pose."""
+        the robot places them: depth offset by the bias, then moved by the believed pose.
+
+        Args:
+            points: True points [m], world frame, shape ``(n, 3)``.
+            position: True camera position [m], world frame, shape ``(3,)``.
+            rotation: True camera orientation (world from camera), shape ``(3, 3)``.
+
+        Returns:
+            The believed points [m], world frame, shape ``(n, 3)`` (a copy).
+        """
         exact = not (np.any(self.position) or np.any(self.rotation) or self.depth_bias)
         if points.size == 0 or exact:  # bit for bit the sensor's points
             return np.array(points, dtype=float)
@@ -120,13 +145,29 @@ class CameraError:
         return np.asarray(camera @ believed_rotation.T + believed_position)
 
     def move_height(self, point: np.ndarray, position: np.ndarray, rotation: np.ndarray) -> float:
-        """The believed world height [m] of one true world ``point`` (the support's)."""
+        """The believed world height of one true world point (the support's).
+
+        Args:
+            point: True point [m], world frame, shape ``(3,)``.
+            position, rotation: The true camera pose, as for :meth:`apply`.
+
+        Returns:
+            Its believed height (world z) [m].
+        """
         return float(self.apply(np.asarray(point, dtype=float)[None, :], position, rotation)[0, 2])
 
 
 def draw_camera_error(options: PerceptionOptions, rng: np.random.Generator) -> CameraError:
     """One view's errors, drawn from ``rng`` (seven standard normals, whatever the sigmas:
-    the stream after them does not depend on the options)."""
+    the stream after them does not depend on the options).
+
+    Args:
+        options: The calibration errors' standard deviations.
+        rng: The view's generator (seven draws taken).
+
+    Returns:
+        The view's errors.
+    """
     draws = rng.standard_normal(7)
     return CameraError(
         position=draws[:3] * options.camera_position_sigma,
@@ -144,7 +185,18 @@ def extrinsic_covariance(
 ) -> np.ndarray:
     """The ``(6, 6)`` covariance (position [m], rotation [rad]; world frame) that the
     calibration errors add to the pose of an object at ``target`` seen from a camera at
-    ``camera`` with orientation ``rotation`` (columns x right, y down, z forward)."""
+    ``camera`` with orientation ``rotation`` (columns x right, y down, z forward).
+
+    Args:
+        options: The calibration errors' standard deviations.
+        camera: Camera position [m], world frame, shape ``(3,)``.
+        rotation: Camera orientation (world from camera), shape ``(3, 3)``.
+        target: The object's position [m], world frame, shape ``(3,)``.
+
+    Returns:
+        The covariance, shape ``(6, 6)``: position [m^2], rotation [rad^2] and their
+        cross terms [m rad], world frame.
+    """
     r = np.asarray(target, dtype=float) - np.asarray(camera, dtype=float)
     angle = math.radians(options.camera_angle_sigma) ** 2
     skew = _skew(r)
