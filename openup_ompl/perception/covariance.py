@@ -70,7 +70,15 @@ class SuperquadricFit:
         :data:`PARAMETERS`) held at their fitted values: zero rows and columns for them.
         A turn about a symmetry axis of the fitted shape moves no surface: left free, its
         barely observed variance leaks into the position's through its correlation with
-        the sizes and the centre (see :mod:`~openup_ompl.perception.uncertainty`)."""
+        the sizes and the centre (see :mod:`~openup_ompl.perception.uncertainty`).
+
+        Args:
+            fixed: Indices in :data:`PARAMETERS` of the parameters held.
+
+        Returns:
+            The covariance [m, rad, unitless exponents; squared and crossed], rotation in
+            the fitted frame, shape ``(11, 11)``.
+        """
         if not fixed or self.jacobian is None or self.residuals is None:
             return self.covariance.copy()
         free = [k for k in range(N_PARAMETERS) if k not in set(fixed)]
@@ -101,6 +109,15 @@ class SuperquadricFit:
         its curvature): the points do not bound them, the free space does, and the
         points' covariance gave them a noise-dependent variance (``u`` jumped between
         seeds). The scene names the object's dimensions: ``size_sigma`` is how well.
+
+        Args:
+            fixed: Indices in :data:`PARAMETERS` of the parameters held.
+            size_sigma: Standard deviation [m] of each half-size (``0``: the shape free).
+            groups: Indices of the half-sizes that err together, one tuple per group.
+
+        Returns:
+            The covariance, shape ``(6, 6)``: position [m^2], rotation [rad^2] and their
+            cross terms, world frame.
         """
         if size_sigma <= 0 or self.jacobian is None or self.residuals is None:
             covariance = self.conditioned(fixed)
@@ -163,6 +180,10 @@ def parameter_covariance(
             support's (:func:`measurement_rows`).
         points: How many residuals are the points' (they give ``s^2``).
         kind: One of :data:`COVARIANCES`.
+
+    Returns:
+        ``(covariance, unobservable)``: the ``(11, 11)`` covariance of
+        :data:`PARAMETERS` and the unobservable unit directions, one per row.
     """
     n = points
     variance = float(residuals[:n] @ residuals[:n] / (n - N_PARAMETERS))
@@ -171,7 +192,16 @@ def parameter_covariance(
 
 def measurement_rows(residuals: np.ndarray, points: int, free_space: int) -> np.ndarray:
     """The rows of the fit's residuals that measure: the points' and the support's, not
-    the ``free_space`` rows that follow the points' (they bound, module docstring)."""
+    the ``free_space`` rows that follow the points' (they bound, module docstring).
+
+    Args:
+        residuals: All the fit's residuals [m], shape ``(r,)``.
+        points: How many residuals are the points' (the first ones).
+        free_space: How many free-space rows follow them.
+
+    Returns:
+        Row indices, shape ``(r - free_space,)``.
+    """
     return np.r_[0:points, points + free_space : residuals.shape[0]]
 
 
