@@ -36,13 +36,26 @@ def estimate(
     support: float | None,
     size_sigma: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The object's pose and the ``(6, 6)`` covariance of its position [m] and a small
-    rotation [rad] (world frame): the superquadric's for a primitive, with a turn about a
-    symmetry axis of the shape held (it moves no surface), or a mesh's hull registered
-    from it (:mod:`~openup_ompl.perception.registration`). ``size_sigma`` [m]: how well
-    the scene's dimensions are known (see
-    :meth:`~openup_ompl.perception.covariance.SuperquadricFit.pose_covariance`; 0: the
-    superquadric's sizes free)."""
+    """The object's pose and its covariance: the superquadric's for a primitive, with a
+    turn about a symmetry axis of the shape held (it moves no surface), or a mesh's hull
+    registered from it (:mod:`~openup_ompl.perception.registration`).
+
+    Args:
+        fit: The superquadric fitted to the object's points.
+        shape: The scene's shape of the object (its kind, dimensions and nominal pose).
+        points: The object's measured points [m], world frame, shape ``(n, 3)``.
+        weights: ``noise(points, normals) -> sigma`` [m] weighting a mesh's registration;
+            ``None``: unweighted.
+        support: Height [m] of the surface the object stands on (``None``: unknown).
+        size_sigma: How well the scene's dimensions are known [m] (see
+            :meth:`~openup_ompl.perception.covariance.SuperquadricFit.pose_covariance`;
+            0: the superquadric's sizes free).
+
+    Returns:
+        ``(pose, covariance)``: the pose ``[x, y, z, qx, qy, qz, qw]`` [m, unit
+        quaternion] of the shape's frame in the world, and the ``(6, 6)`` covariance of
+        its position [m] and a small world-frame rotation [rad].
+    """
     pose, fixed = _fitted_pose(fit, shape)
     if shape.shape != "mesh":
         return pose, fit.pose_covariance(fixed, size_sigma, _size_groups(fixed))
@@ -93,6 +106,14 @@ def estimated_pose(fit: SuperquadricFit, nominal: Shape) -> np.ndarray:
     is the centre of the shape's bounding box
     (:class:`~openup_ompl.perception.nominal.Nominal`), which a mesh's file may place away
     from its origin.
+
+    Args:
+        fit: The superquadric fitted to the object's points.
+        nominal: The scene's shape of the object.
+
+    Returns:
+        The pose ``[x, y, z, qx, qy, qz, qw]`` [m, unit quaternion] of the shape's frame
+        in the world.
     """
     return _fitted_pose(fit, nominal)[0]
 
@@ -168,7 +189,16 @@ def _box_rotation(
 def symmetric_turn(axis: np.ndarray, reference: np.ndarray, shape: Nominal) -> np.ndarray:
     """The orientation of a solid of revolution whose axis lies along ``axis`` (world,
     either sign), nearest the ``reference`` orientation: its turn about the axis, which
-    moves no surface, is the reference's (a sphere's whole orientation is)."""
+    moves no surface, is the reference's (a sphere's whole orientation is).
+
+    Args:
+        axis: The axis's direction, world frame, shape ``(3,)`` (unit, either sign).
+        reference: The nominal orientation (world from shape), shape ``(3, 3)``.
+        shape: The shape's symmetry (:func:`~openup_ompl.perception.nominal.nominal_of`).
+
+    Returns:
+        The orientation (world from shape), shape ``(3, 3)``.
+    """
     if shape.symmetry == "all":
         return np.asarray(reference, dtype=float)
     k = shape.axis

@@ -109,6 +109,9 @@ def register_hull(
         noise: ``noise(points, normals) -> sigma`` [m] for weights (as the superquadric
             fit's); None: unweighted.
         support: Height [m] of the surface the object stands on (None: unknown).
+
+    Returns:
+        The best start's registered pose, with its covariance.
     """
     from scipy.optimize import least_squares
 
