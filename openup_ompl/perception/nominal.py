@@ -53,8 +53,14 @@ class Nominal:
         return float(max(self.half[j] for j in range(3) if j != self.axis))
 
     def symmetry_axes(self, rotation: np.ndarray) -> np.ndarray:
-        """World unit vectors about which a rotation moves no surface of the shape, rows
-        (none, the axis of revolution, or all three) for the shape's world ``rotation``."""
+        """World unit vectors about which a rotation moves no surface of the shape.
+
+        Args:
+            rotation: The shape's orientation (world from shape), shape ``(3, 3)``.
+
+        Returns:
+            The axes as rows, shape ``(k, 3)``: none, the axis of revolution, or all three.
+        """
         if self.symmetry == "all":
             return np.eye(3)
         if self.symmetry == "axis":
@@ -64,6 +70,12 @@ class Nominal:
 
 def nominal_of(shape: Shape) -> Nominal:
     """The scene shape's :class:`Nominal` (a mesh's from its convex hull).
+
+    Args:
+        shape: A scene shape (box, cylinder, sphere or mesh).
+
+    Returns:
+        Its half-extents [m], centre [m, shape frame] and symmetry.
 
     Raises:
         ConfigError: A mesh file that cannot be read (as when the scene was loaded).
