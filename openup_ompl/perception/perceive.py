@@ -105,7 +105,12 @@ class Perception:
         return self.pose_covariance[3:, 3:].copy()
 
     def summary(self) -> dict[str, Any]:
-        """The estimate as plain JSON-ready values."""
+        """The estimate as plain JSON-ready values.
+
+        Returns:
+            The pose, ``u`` and its fits, the fit's points, superquadric and residuals,
+            and the covariances (SI units: m, rad).
+        """
         sq = self.fit.superquadric
         return {
             "pose": [float(x) for x in self.pose],
@@ -173,6 +178,9 @@ def perceive(
             noise, applied to the cloud and added to the covariance) and the estimator's
             bootstrap refits (their spread of ``u`` is reported; drawn from ``rng`` last);
             ``PerceptionOptions.exact()``: the sensor noise alone.
+
+    Returns:
+        The estimate: the object's pose, its covariance, the fit, the cloud and ``u``.
 
     Raises:
         ConfigError: ``depth_camera`` was built on another object (or pose) than the
@@ -277,8 +285,16 @@ def _as_believed(
 
 
 def without_turns(covariance: np.ndarray, axes: np.ndarray) -> np.ndarray:
-    """A ``(6, 6)`` pose covariance with no rotation about the unit world ``axes`` (rows):
-    a turn about a symmetry axis of the shape moves none of its surface."""
+    """A pose covariance with no rotation about some world axes: a turn about a symmetry
+    axis of the shape moves none of its surface.
+
+    Args:
+        covariance: Position [m] and small world-frame rotation [rad], shape ``(6, 6)``.
+        axes: Unit world axes as rows, shape ``(k, 3)``.
+
+    Returns:
+        The projected covariance, shape ``(6, 6)`` (``covariance`` itself if ``k = 0``).
+    """
     if axes.size == 0:
         return covariance
     keep = np.eye(6)
@@ -325,6 +341,14 @@ def at_estimate(problem: Problem, pose: np.ndarray) -> Problem:
     """The problem as perception reports it: the object at ``pose`` and the grasp pose
     carried along (``T_grasp' = T_estimate T_nominal^-1 T_grasp``).
 
+    Args:
+        problem: The scene as loaded.
+        pose: The object's estimated pose ``[x, y, z, qx, qy, qz, qw]`` [m, unit
+            quaternion], world frame.
+
+    Returns:
+        A copy of ``problem`` with the object and the grasp pose moved.
+
     Raises:
         InvalidProblem: The problem has no object.
         ConfigError: ``pose`` is not ``[x, y, z, qx, qy, qz, qw]`` of finite numbers with a
@@ -344,6 +368,13 @@ def perceived_toml(problem: Problem, perception: Perception) -> str:
     along with it (:func:`at_estimate`: the grasp is defined relative to the object) and
     ``[hand] u`` set; a robot or a mesh file named by a relative path is written as an
     absolute one, so that the file plans from any directory.
+
+    Args:
+        problem: The scene as loaded from its file.
+        perception: The estimate.
+
+    Returns:
+        The new scene file's text (TOML), with a header comment on the estimate.
 
     Raises:
         InvalidProblem: The problem has no object or was not loaded from a scene file.
@@ -378,7 +409,15 @@ def perceived_toml(problem: Problem, perception: Perception) -> str:
 
 def write_perception(problem: Problem, perception: Perception, out: str | Path) -> dict[str, Path]:
     """Write ``cloud.npz``, ``perception.json`` and ``perceived.toml`` into the directory
-    ``out`` (created if missing); returns their paths.
+    ``out`` (created if missing).
+
+    Args:
+        problem: The scene as loaded from its file (the object at its true pose).
+        perception: The estimate.
+        out: The output directory.
+
+    Returns:
+        The paths written, by key: ``cloud``, ``summary``, ``scene``.
 
     Raises:
         InvalidProblem: ``problem`` has no object (its true pose is written beside the
