@@ -109,7 +109,7 @@ class Perception:
 
         Returns:
             The pose, ``u`` and its fits, the fit's points, superquadric and residuals,
-            and the covariances (SI units: m, rad).
+            the covariances, the camera and its calibration errors (SI units: m, rad).
         """
         sq = self.fit.superquadric
         return {
