@@ -29,7 +29,17 @@ def silhouette_of(
     """The view's free space: the object's pixels, pixels without a measurement (dropped
     or no hit: unknown) and pixels whose hit lies in front of the object are allowed;
     nothing below the ``support``'s height [m] (:meth:`DepthCamera.support_under`), nor
-    before the depth a pixel measured."""
+    before the depth a pixel measured.
+
+    Args:
+        view: The rendered view (true depths, per pixel).
+        noise: The sensor noise model (its grazing-incidence limit).
+        camera: The camera options (their intrinsics).
+        support: Height [m, world z] of the surface under the object, or ``None``.
+
+    Returns:
+        The view's free space for the fit.
+    """
     valid = _valid(view, noise)
     shape = (view.height, view.width)
     return Silhouette.from_view(
@@ -65,7 +75,15 @@ def occluded_outline(view: DepthView, noise: NoiseOptions) -> dict[str, tuple[in
     """Per image side, the object's outline pixels on it whose next pixel beyond is an
     occluder (a measured surface nearer than the object's nearest point), and all its
     outline pixels on it: ``{side: (hidden, outline)}``. The table in front of a standing
-    object's base lies behind its nearest point and hides nothing."""
+    object's base lies behind its nearest point and hides nothing.
+
+    Args:
+        view: The rendered view.
+        noise: The sensor noise model (its grazing-incidence limit).
+
+    Returns:
+        ``{side: (hidden, outline)}`` pixel counts, sides ``top, bottom, left, right``.
+    """
     shape = (view.height, view.width)
     on_object = view.on_object.reshape(shape)
     occluder = _occluder(view, noise).reshape(shape)
@@ -89,7 +107,15 @@ def bounded_outline(view: DepthView, noise: NoiseOptions) -> int:
     """The object's outline pixels whose next pixel beyond (on any image side) measured a
     surface behind the object's nearest point: where the view bounds the object (an
     occluder's pixel hides it, a pixel without a measurement, such as a table seen at
-    grazing incidence, says nothing)."""
+    grazing incidence, says nothing).
+
+    Args:
+        view: The rendered view.
+        noise: The sensor noise model (its grazing-incidence limit).
+
+    Returns:
+        The number of such pixels.
+    """
     shape = (view.height, view.width)
     on_object = view.on_object.reshape(shape)
     valid = _valid(view, noise)
@@ -121,8 +147,24 @@ def checked_view(
     silhouette: bool,
 ) -> float | None:
     """Refuse a view that does not show the whole object (see
-    :func:`~openup_ompl.perception.perceive.perceive`'s ``Raises``); returns the height
-    [m] of the surface it stands on (None: unknown, or ``silhouette`` off)."""
+    :func:`~openup_ompl.perception.perceive.perceive`'s ``Raises``).
+
+    Args:
+        problem: The scene; its object is where it truly is.
+        cam: The camera that rendered the view.
+        view: The rendered view.
+        cloud: The noisy point cloud measured from it.
+        noise: The sensor noise model.
+        silhouette: Whether the fit uses the view's free space.
+
+    Returns:
+        The height [m, world z] of the surface the object stands on (``None``: unknown,
+        or ``silhouette`` off).
+
+    Raises:
+        PerceptionError: As :func:`~openup_ompl.perception.perceive.perceive` lists
+            (object not visible, too few points, cut off, occluded).
+    """
     assert problem.object is not None
     if cloud.points.shape[0] == 0:
         raise ObjectNotVisible(
