@@ -28,7 +28,12 @@ __all__ = [
 
 def add_error_arguments(parser: argparse.ArgumentParser) -> None:
     """The camera's calibration errors and the estimator's restarts as options of a
-    command (:class:`~openup_ompl.perception.extrinsic.PerceptionOptions`; its defaults)."""
+    command (:class:`~openup_ompl.perception.extrinsic.PerceptionOptions`; its defaults).
+
+    Args:
+        parser: The command's parser, given ``--camera-position-sigma`` [m],
+            ``--camera-angle-sigma`` [deg], ``--depth-bias-sigma`` [m] and ``--restarts``.
+    """
     from openup_ompl.perception.extrinsic import PerceptionOptions
 
     default = PerceptionOptions()
@@ -67,8 +72,17 @@ def add_error_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def perception_options(args: argparse.Namespace) -> Any:
-    """The :class:`~openup_ompl.perception.extrinsic.PerceptionOptions` of parsed
-    :func:`add_error_arguments` options (a bad value: ``ConfigError`` naming it)."""
+    """The perception options of parsed :func:`add_error_arguments` options.
+
+    Args:
+        args: The parsed command line.
+
+    Returns:
+        The :class:`~openup_ompl.perception.extrinsic.PerceptionOptions`.
+
+    Raises:
+        ConfigError: A bad value, naming it.
+    """
     from openup_ompl.perception.extrinsic import PerceptionOptions
 
     return PerceptionOptions(

@@ -165,7 +165,16 @@ class ClosedLoopOptions:
 
 
 def planar_offset(estimate: Shape, true: Shape) -> tuple[float, float, float]:
-    """The true object's planar offset ``(dx, dy)`` [m] and yaw [rad] from the estimate."""
+    """The true object's planar offset and yaw from the estimate.
+
+    Args:
+        estimate: The object at its estimated pose.
+        true: The object at its true pose.
+
+    Returns:
+        ``(dx, dy, yaw)``: the position offset [m] along the world x and y axes and the
+        turn [rad] about the estimate's own z axis.
+    """
     dx, dy = (true.pose[:2] - estimate.pose[:2]).tolist()
     relative = estimate.placement.rotation.T @ true.placement.rotation
     return dx, dy, float(math.atan2(relative[1, 0], relative[0, 0]))

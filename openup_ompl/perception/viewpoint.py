@@ -62,7 +62,11 @@ class ViewChoice:
     seeing: int
 
     def describe(self) -> str:
-        """One line saying which view is used and why."""
+        """One line saying which view is used and why.
+
+        Returns:
+            The line (angles [deg], distance [m]).
+        """
         if self.configured:
             return "camera: the configured view sees the object"
         o = self.options
@@ -93,6 +97,10 @@ def choose_camera(problem: Problem, configured: CameraOptions) -> ViewChoice:
     Args:
         problem: The scene; its object is where it truly is.
         configured: The scene's camera (its ``[camera]`` table and overrides).
+
+    Returns:
+        The view chosen: its camera and options, whether it is the configured one, and
+        how many ring views were tried and saw the object.
 
     Raises:
         NoViewSeesObject: Neither the configured view nor any of the ring sees the object
