@@ -166,9 +166,19 @@ class Silhouette:
         support: float | None = None,
         depth: np.ndarray | None = None,
     ) -> Silhouette:
-        """From ``(H, W)`` masks of the object's pixels and of pixels whose hit is in
-        front of the object (where it may hide), the ``support``'s height and the
-        ``(H, W)`` measured ``depth`` [m] (NaN: none)."""
+        """The free space of one view.
+
+        Args:
+            object_mask: ``(H, W)`` the object's pixels.
+            occluder_mask: ``(H, W)`` pixels whose hit is in front of the object (where it
+                may hide) or that measured nothing.
+            position, rotation: The camera's pose, world frame ([m]; ``(3, 3)``, world from
+                camera).
+            intrinsics: ``(fx, fy, cx, cy)`` [pixels].
+            samples: Numbers of latitudes and longitudes of the surface samples.
+            support: Height [m, world z] of the surface under the object, or ``None``.
+            depth: ``(H, W)`` measured depth [m] (NaN: none), or ``None``.
+        """
         from scipy.ndimage import distance_transform_edt
 
         allowed = object_mask | occluder_mask
@@ -187,8 +197,15 @@ class Silhouette:
         )
 
     def excess(self, world: np.ndarray) -> np.ndarray:
-        """Each world point's image distance [m] beyond the allowed region, plus its depth
-        below the :attr:`support`."""
+        """Each world point's image distance beyond the allowed region, plus its depth
+        below the :attr:`support`.
+
+        Args:
+            world: Points [m], world frame, shape ``(..., 3)``.
+
+        Returns:
+            The excess [m] (image distance scaled to the point's depth), shape ``(...)``.
+        """
         from scipy.ndimage import map_coordinates
 
         fx, fy, cx, cy = self.intrinsics
@@ -264,8 +281,14 @@ class SizePrior:
     noise: float
 
     def rows(self, sizes: np.ndarray) -> np.ndarray:
-        """``(k, 3)`` residuals [m] of ``(k, 3)`` half-sizes: their gaps to the nominal
-        ones in the order that matches them best."""
+        """The half-sizes' gaps to the nominal ones, in the order that matches them best.
+
+        Args:
+            sizes: Half-sizes [m], shape ``(k, 3)``.
+
+        Returns:
+            Residuals [m], shape ``(k, 3)``, scaled by ``noise / sigma``.
+        """
         half = np.asarray(self.half, dtype=float)
         gaps = np.stack([sizes - half[list(order)] for order in _ORDERS])  # (6, k, 3)
         best = np.argmin(np.sum(gaps**2, axis=2), axis=0)
@@ -352,6 +375,9 @@ def fit_superquadric(
             fit undetermined; a few more than 11 leave ``s^2`` meaningless).
         ConfigError: ``points`` not of shape ``(N, 3)``, or not finite, or at one place or
             on one line.
+
+    Returns:
+        The fit: the superquadric, its parameters' covariance and the residuals.
     """
     from scipy.optimize import least_squares
 
