@@ -247,6 +247,9 @@ def camera_of_scene(problem: Problem, overrides: Mapping[str, Any] | None = None
     """The camera of the problem's scene file (its ``[camera]`` table; the defaults for
     a problem without one, or built in code), with ``overrides`` (the same keys) on top.
 
+    Args:
+        problem: The scene (read again from its file, if it has one).
+        overrides: ``[camera]`` keys and values (distances [m], angles [deg]), or ``None``.
     Raises:
         ConfigError: A ``[camera]`` that is not a table, or a bad key or value.
     """
@@ -264,7 +267,13 @@ def camera_of_scene(problem: Problem, overrides: Mapping[str, Any] | None = None
 
 
 def camera_rotation(position: np.ndarray, target: np.ndarray) -> np.ndarray:
-    """World rotation of the camera frame (columns: x right, y down, z forward)."""
+    """World rotation of the camera frame (columns: x right, y down, z forward).
+
+    Args:
+        position, target: The camera's position and the point it looks at [m], world frame.
+    Returns:
+        The rotation (world from camera), ``(3, 3)``; image up is world +z (+x looking along z).
+    """
     forward = (target - position) / np.linalg.norm(target - position)
     up = np.array([0.0, 0.0, 1.0])
     if abs(float(forward @ up)) > 0.999:  # looking straight up or down: image up is +x
