@@ -22,7 +22,14 @@ def _transform(placement: pin.SE3) -> coal.Transform3s:
 
 
 def shape_distance(a: Shape, b: Shape) -> float:
-    """Signed distance [m] between two scene shapes (negative: they overlap)."""
+    """Signed distance between two scene shapes (Coal).
+
+    Args:
+        a, b: Scene shapes at their poses (world frame).
+
+    Returns:
+        The distance [m]; negative: they overlap.
+    """
     request, result = coal.DistanceRequest(), coal.DistanceResult()
     return float(
         coal.distance(
@@ -85,9 +92,16 @@ class HandSweep:
         return [palm.actInv(self.data.oMi[g.parentJoint] * g.placement) for g in self.fingers]
 
     def clearance(self, u: float) -> np.ndarray:
-        """Per approach step, the smallest signed distance [m] from a finger to an
-        obstacle other than the support at ``u`` (negative: they overlap; ``inf``: no
-        obstacle)."""
+        """Per approach step, the smallest signed distance from a finger to an obstacle
+        other than the support.
+
+        Args:
+            u: The hand law's ``u`` (unitless, in ``[0, 1]``).
+
+        Returns:
+            Distances [m], one per step, shape ``(samples,)`` (negative: they overlap;
+            ``inf``: no obstacle).
+        """
         law = self.problem.hand_law.with_options(u=float(u))
         out = np.full(len(self.steps), np.inf)
         request = coal.DistanceRequest()
@@ -102,7 +116,11 @@ class HandSweep:
         return out
 
     def approach_clear(self) -> bool:
-        """The fingers at ``u = 0`` touch no obstacle anywhere on the approach."""
+        """Whether the fingers at ``u = 0`` touch no obstacle anywhere on the approach.
+
+        Returns:
+            ``True`` if every step's clearance is positive.
+        """
         return bool(np.all(self.clearance(0.0) > 0.0))
 
     def _baseline_hands(self, yielded: bool = False) -> list[tuple[pin.SE3, np.ndarray]]:
@@ -139,7 +157,17 @@ class HandSweep:
     ) -> np.ndarray:
         """How far [m] the ``u = 0`` hand's fingers (:meth:`_baseline_hands`) reach from
         ``centre`` along each world unit vector of ``directions`` (signed: the largest
-        projection, 0 if none is positive); ``yielded``: see :meth:`_baseline_hands`."""
+        projection, 0 if none is positive).
+
+        Args:
+            centre: The point reached from [m], world frame, shape ``(3,)``.
+            directions: World unit vectors.
+            yielded: Include the hand pushed open to its limits
+                (:meth:`_baseline_hands`).
+
+        Returns:
+            The reach [m] along each direction, shape ``(len(directions),)``.
+        """
         signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)])
         axes = np.array(directions, dtype=float)
         reach = np.zeros(len(axes))
@@ -157,7 +185,15 @@ class HandSweep:
     def largest_safe_u(self, margin: float = 0.005, tolerance: float = 0.02) -> float:
         """The largest ``u`` in ``[0, 1]`` whose swept fingers come no closer than
         ``margin`` [m] to an obstacle at any step, or no closer than ``u = 0``'s already
-        do there (bisection to ``tolerance``; the opening grows with ``u``)."""
+        do there (bisection to ``tolerance``; the opening grows with ``u``).
+
+        Args:
+            margin: Clearance [m] kept from every obstacle.
+            tolerance: Bisection width on ``u`` (unitless).
+
+        Returns:
+            ``u`` in ``[0, 1]`` (1 when every ``u`` is safe).
+        """
         floor = np.minimum(self.clearance(0.0), margin) - 1e-6
 
         def safe(u: float) -> bool:
