@@ -68,6 +68,14 @@ class ErrorSource:
 def parse_error(name: str) -> ErrorSource:
     """An error source from its name.
 
+    Args:
+        name: ``pose-<sigma>cm`` (a planar pose error of standard deviation ``sigma``
+            [cm] per axis) or ``perceived[-<scale>]`` (perception with the sensor noise
+            scaled by ``scale``).
+
+    Returns:
+        The error source (``sigma`` stored in [m]).
+
     Raises:
         ConfigError: Not ``pose-<sigma>cm`` or ``perceived[-<scale>]``, or a value out of
             range.
@@ -120,6 +128,9 @@ def believe(truth: Problem, source: ErrorSource, rng: np.random.Generator) -> Be
         truth: The problem as it really is.
         source: The error source.
         rng: The trial's error generator (its draws: ``dx, dy, yaw`` or the sensor noise).
+
+    Returns:
+        The belief: the problem at the estimate and the policies' evidence, or a refusal.
     """
     shape = truth.object
     assert shape is not None
