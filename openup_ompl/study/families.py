@@ -122,11 +122,24 @@ class Family:
     scene: Path | None = None
 
     def to_json(self) -> dict[str, Any]:
+        """The family as JSON-ready values.
+
+        Returns:
+            ``{"name", "robot", "kind", "scene"}`` (``scene`` a path string or ``None``).
+        """
         return {"name": self.name, "robot": self.robot, "kind": self.kind,
                 "scene": None if self.scene is None else str(self.scene)}  # fmt: skip
 
     @classmethod
     def from_json(cls, data: dict[str, Any]) -> Family:
+        """The family of :meth:`to_json`'s values.
+
+        Args:
+            data: ``{"name", "robot", "kind", "scene"}``.
+
+        Returns:
+            The family.
+        """
         scene = data.get("scene")
         return cls(data["name"], data["robot"], data["kind"], Path(scene) if scene else None)
 
@@ -134,6 +147,13 @@ class Family:
 def parse_families(names: list[str] | None, scene: str | Path | None = None) -> list[Family]:
     """Families from names: ``"<robot>-<kind>"``, a bare kind (for every robot of
     :data:`ROBOTS`), ``"all"``; and a user's scene file.
+
+    Args:
+        names: Family names, or ``None``.
+        scene: A user's scene file, its own family, or ``None``.
+
+    Returns:
+        The families, the scene's first.
 
     Raises:
         ConfigError: An unknown robot or kind, or nothing asked for.
@@ -340,6 +360,16 @@ def instance_problem(
     """Draw one instance of ``family`` (``template``: its robot's shipped scene, loaded;
     or for a ``"scene"`` family the user's scene, returned as it is).
 
+    Args:
+        family: The family.
+        rng: The instance's generator (placement, yaw and obstacles drawn from it).
+        template: The family's template scene (:func:`template_scene`).
+        mesh_dir: Directory the mesh family's OBJ files are written to (needed for it).
+
+    Returns:
+        The instance's problem, its object clear of the obstacles and its approach clear
+        at ``u = 0``.
+
     Raises:
         ConfigError: No clear instance in :data:`MAX_DRAWS` draws.
     """
@@ -361,7 +391,18 @@ def instance_problem(
 
 
 def template_scene(family: Family, robot: Robot | None = None) -> Problem:
-    """The scene a family's instances are drawn from (its robot's shipped scene)."""
+    """The scene a family's instances are drawn from (its robot's shipped scene).
+
+    Args:
+        family: The family.
+        robot: Its robot already loaded (``None``: loaded here).
+
+    Returns:
+        The scene, loaded.
+
+    Raises:
+        ConfigError, RobotNotFound: What :func:`~openup_ompl.scene.load_scene` raises.
+    """
     if family.scene is not None:
         return load_scene(family.scene, robot)
     return load_scene(data_dir("scenes") / ROBOTS[family.robot], robot)
