@@ -77,8 +77,15 @@ class Evidence:
 
 
 def shape_diameter(shape: Shape) -> float:
-    """The largest extent [m] of a scene shape (box: largest side; cylinder: the larger of
-    diameter and length; sphere: diameter; mesh: largest side of its bounding box)."""
+    """The largest extent of a scene shape (box: largest side; cylinder: the larger of
+    diameter and length; sphere: diameter; mesh: largest side of its bounding box).
+
+    Args:
+        shape: The scene shape.
+
+    Returns:
+        The extent [m].
+    """
     if shape.shape == "box":
         assert shape.size is not None
         return float(np.max(shape.size))
@@ -97,6 +104,12 @@ def shape_diameter(shape: Shape) -> float:
 
 def check_policies(policies: tuple[str, ...] | list[str]) -> tuple[str, ...]:
     """``policies`` as canonical names (a number as ``f"{u:g}"``), distinct.
+
+    Args:
+        policies: Policy names: a fixed ``u`` in ``[0, 1]`` or one of :data:`NAMED`.
+
+    Returns:
+        The canonical names, in the order given.
 
     Raises:
         ConfigError: An empty list, an unknown name, a number outside ``[0, 1]``, or a
@@ -130,6 +143,9 @@ def policy_u(policy: str, evidence: Evidence, believed: Problem, safe: float | N
         believed: The problem as believed (the object at its estimate).
         safe: ``HandSweep(believed).largest_safe_u()`` if already computed (the
             ``adaptive`` policy computes it otherwise).
+
+    Returns:
+        The trial's ``u`` (unitless, in ``[0, 1]``).
     """
     if policy not in NAMED:
         return float(policy)
