@@ -70,7 +70,15 @@ def _cells(records: Sequence[dict[str, Any]]) -> dict[tuple[str, str], list[dict
 
 
 def map_rows(records: Sequence[dict[str, Any]], policies: Sequence[str]) -> list[dict[str, Any]]:
-    """One :data:`MAP_COLUMNS` row per ``(family, error, policy)``."""
+    """Success rates per cell, with their Wilson 95 % intervals.
+
+    Args:
+        records: The trials' records (one per trial).
+        policies: The policies, canonical names.
+
+    Returns:
+        One :data:`MAP_COLUMNS` row per ``(family, error, policy)``, pooled cells included.
+    """
     rows = []
     for (family, error), trials in _cells(records).items():
         for policy in policies:
@@ -106,7 +114,15 @@ def map_rows(records: Sequence[dict[str, Any]], policies: Sequence[str]) -> list
 
 
 def pair_rows(records: Sequence[dict[str, Any]], policies: Sequence[str]) -> list[dict[str, Any]]:
-    """One :data:`PAIR_COLUMNS` row per ``(family, error)`` and pair of policies."""
+    """Paired comparisons of the policies, exact McNemar tests on the discordant trials.
+
+    Args:
+        records: The trials' records (one per trial).
+        policies: The policies, canonical names.
+
+    Returns:
+        One :data:`PAIR_COLUMNS` row per ``(family, error)`` and pair of policies.
+    """
     rows = []
     for (family, error), trials in _cells(records).items():
         for a, b in combinations(policies, 2):
@@ -133,7 +149,16 @@ def _text(value: Any) -> Any:
 
 
 def write_rows(rows: Sequence[dict[str, Any]], columns: Sequence[str], path: Path) -> Path:
-    """A CSV of ``columns`` (floats to six significant digits)."""
+    """Write a CSV of ``columns`` (floats to six significant digits).
+
+    Args:
+        rows: The rows, each holding every column.
+        columns: The columns, in order.
+        path: The file (its directory is created if missing).
+
+    Returns:
+        ``path``.
+    """
     make_dir(path.parent)
     with path.open("w", newline="") as handle:
         writer = csv.DictWriter(handle, fieldnames=list(columns))
@@ -148,6 +173,15 @@ def plot_study(
 ) -> Path:
     """Success rate against the error source, one panel per family, one line per policy
     with its Wilson 95 % band; the trial count in each panel's title.
+
+    Args:
+        rows: :func:`map_rows`'s rows.
+        errors: The error sources, in x order.
+        path: The PNG file.
+        title: The figure's title (none if empty).
+
+    Returns:
+        The path written.
 
     Raises:
         MissingExtra: matplotlib is not installed.
