@@ -109,8 +109,17 @@ def _name_key(name: str) -> int:
 def trial_seeds(
     seed: int, family: str, error: str, trial: int
 ) -> tuple[np.random.Generator, np.random.Generator, int]:
-    """A trial's instance generator, error generator and plan seed, from the study's
-    ``seed``, the family's and error's names and the trial's index."""
+    """A trial's generators and plan seed, independent streams of one seed sequence.
+
+    Args:
+        seed: The study's seed.
+        family: The family's name.
+        error: The error source's name.
+        trial: The trial's index.
+
+    Returns:
+        ``(instance_rng, error_rng, plan_seed)``; ``plan_seed`` in ``[1, SEED_LIMIT)``.
+    """
     sequence = np.random.SeedSequence([seed, _name_key(family), _name_key(error), trial])
     instance, error_stream, plan = sequence.spawn(3)
     plan_seed = int(plan.generate_state(1)[0]) % (SEED_LIMIT - 1) + 1
@@ -175,6 +184,17 @@ def run_trial(
 ) -> dict[str, Any]:
     """One paired trial: every policy on the same instance, belief and plan seed.
 
+    Args:
+        family: The family the instance is drawn from.
+        template: Its template scene (:func:`~openup_ompl.study.families.template_scene`).
+        source: The error source.
+        policies: The policies, canonical names.
+        trial: The trial's index.
+        seed: The study's seed.
+        planner: A planner name (:data:`~openup_ompl.planning_options.PLANNERS`).
+        time_limit: Planning time per plan [s].
+        mesh_dir: Directory of the mesh family's OBJ files.
+
     Returns:
         ``{"trial", "plan_seed", "object", "obstacles", "offset", "refusal", "safe_u",
         "results": {policy: {"u", "planned", "held", "cause", "obstacle_contact",
@@ -226,7 +246,20 @@ def study_chunk(
     mesh_dir: str,
 ) -> dict[str, Any]:
     """Trials ``start`` to ``stop - 1`` of one cell (an executor task; ``seed`` is the
-    executor's and unused: each trial's seeds derive from ``study_seed``)."""
+    executor's and unused: each trial's seeds derive from ``study_seed``).
+
+    Args:
+        seed: The executor's task seed (unused).
+        family: The family, as :meth:`~openup_ompl.study.families.Family.to_json`.
+        error: The error source's name.
+        start, stop: The trials' index range.
+        policies, planner, time_limit: As for :func:`run_trial`.
+        study_seed: The study's seed.
+        mesh_dir: Directory of the mesh family's OBJ files.
+
+    Returns:
+        ``{"family", "error", "start", "stop", "trials"}``, the trials' records.
+    """
     fam = Family.from_json(family)
     template = template_scene(fam)
     source = parse_error(error)
@@ -250,7 +283,15 @@ def study_chunk(
 def make_tasks(options: StudyOptions, mesh_dir: Path) -> list[Task]:
     """One task per ``(family, error, chunk of trials)``; each key carries a digest of
     every setting and of the files the family is drawn from, so that a rerun into the same
-    shards reuses a chunk only when nothing it depends on changed."""
+    shards reuses a chunk only when nothing it depends on changed.
+
+    Args:
+        options: The study's settings.
+        mesh_dir: Directory of the mesh family's OBJ files.
+
+    Returns:
+        The tasks, for :func:`~openup_ompl.executor.run_tasks`.
+    """
     tasks = []
     for family in options.families:
         files = template_scene(family).source_files()
