@@ -11,7 +11,14 @@ __all__ = ["add_parser", "study_command"]
 
 
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
-    """Add ``study`` to the command line's subparsers (:mod:`openup_ompl.cli`)."""
+    """Add ``study`` to the command line's subparsers (:mod:`openup_ompl.cli`).
+
+    Args:
+        subparsers: The command line's subparsers action.
+
+    Returns:
+        The ``study`` parser.
+    """
     from openup_ompl.cli._common import count, out_path, planner, scheduler, seed, time_limit
     from openup_ompl.study.errors import DEFAULT_ERRORS
     from openup_ompl.study.families import KINDS, ROBOTS
@@ -67,7 +74,14 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 
 
 def study_command(args: argparse.Namespace) -> int:
-    """Run the study and print where its outputs are and its best policy per cell."""
+    """Run the study and print each cell's successes per policy and where its outputs are.
+
+    Args:
+        args: The parsed command line.
+
+    Returns:
+        The exit status, 0.
+    """
     from openup_ompl.cli._common import dir_out
     from openup_ompl.study.families import parse_families
     from openup_ompl.study.run import StudyOptions

@@ -53,6 +53,12 @@ def mcnemar_exact(a_only: int, b_only: int) -> float:
     Args:
         a_only: Pairs where only policy A held.
         b_only: Pairs where only policy B held.
+
+    Returns:
+        The p-value, in ``[0, 1]``.
+
+    Raises:
+        ConfigError: A count that is not a non-negative integer.
     """
     from scipy.stats import binomtest
 

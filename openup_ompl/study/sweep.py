@@ -65,6 +65,9 @@ def run_study(
         scheduler: Dask scheduler address; ``None`` runs locally.
         quiet: No progress on stderr.
 
+    Returns:
+        The files written (CSVs, figure, ``trials.json``) and the rows, pairs and records.
+
     Raises:
         ConfigError: Bad options or ``out`` a file.
         SweepFailed: Some chunk failed on every attempt (the others' shards are kept).
