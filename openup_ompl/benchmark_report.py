@@ -107,7 +107,16 @@ def plot_results(rows: Sequence[dict[str, Any]], out: Path) -> list[Path]:
 
 
 def markdown_table(rows: Sequence[dict[str, Any]]) -> str:
-    """The results table (times in ms)."""
+    """The results table (times in ms).
+
+    Args:
+        rows: :func:`summarize`'s rows: ``success`` a rate in ``[0, 1]``, ``median_time``
+            and ``p95_time`` [s], ``length`` the mean path length [rad] (``None``: no run
+            solved).
+
+    Returns:
+        The table in Markdown, success in percent, times in ms.
+    """
     lines = [
         "| problem | planner | hand | runs | success | median [ms] | p95 [ms] | length [rad] |",
         "|:--|:--|:--|--:|--:|--:|--:|--:|",

@@ -178,7 +178,17 @@ def closing_limits(
     c: np.ndarray, w: np.ndarray, lower: np.ndarray, upper: np.ndarray
 ) -> np.ndarray:
     """Each hand joint's limit on ``c``'s side of ``w`` (where it closes to when the robot
-    file gives no ``[hand].closed``); NaN for a joint with ``c == w``, which does not close."""
+    file gives no ``[hand].closed``).
+
+    Args:
+        c, w: The hand law's close preshape and widest open configuration [rad or m],
+            shape ``(hand dof,)``.
+        lower, upper: The hand joints' limits [rad or m], shape ``(hand dof,)``.
+
+    Returns:
+        The limits [rad or m], shape ``(hand dof,)``; NaN for a joint with ``c == w``,
+        which does not close.
+    """
     return np.where(c < w, lower, np.where(c > w, upper, np.nan))
 
 
