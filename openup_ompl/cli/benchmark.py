@@ -11,7 +11,11 @@ HELP = "run a problem suite through ompl.tools.Benchmark; OMPL logs, database, p
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Problems, planners, runs, time, output and where the tasks run."""
+    """Problems, planners, runs, time, output and where the tasks run.
+
+    Args:
+        parser: The command's parser, given its options.
+    """
     from openup_ompl.planning import PLANNERS
 
     parser.add_argument(
@@ -50,7 +54,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the benchmark, then print the table and where the outputs are; returns 0."""
+    """Run the benchmark, then print the table and where the outputs are; returns 0.
+
+    Args:
+        args: The parsed command line.
+
+    Returns:
+        The exit status.
+    """
     from openup_ompl.benchmark import default_problems, run_benchmark
     from openup_ompl.benchmark_report import markdown_table
 

@@ -15,7 +15,11 @@ HELP = (
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """The judge, the scene, the policies, the camera, noises, distances and trials."""
+    """The judge, the scene, the policies, the camera, noises, distances and trials.
+
+    Args:
+        parser: The command's parser, given its options.
+    """
     parser.add_argument(
         "--execute",
         choices=("kinematic", "physics"),
@@ -63,7 +67,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Check ``--out``, then hand over to the perception package's handler."""
+    """Check ``--out``, then hand over to the perception package's handler.
+
+    Args:
+        args: The parsed command line.
+
+    Returns:
+        The exit status.
+    """
     from openup_ompl.perception.cli import closed_loop_command
 
     dir_out(args.out)

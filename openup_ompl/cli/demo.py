@@ -20,7 +20,11 @@ HELP = "plan the default scene; write its plan and pictures"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """The planning options, ``--out`` (a directory) and ``--scene``."""
+    """The planning options, ``--out`` (a directory) and ``--scene``.
+
+    Args:
+        parser: The command's parser, given its options.
+    """
     add_planning_options(parser, 5.0)
     parser.add_argument(
         "--out", type=out_path, default=Path("openup-demo"), help="output directory"
@@ -35,7 +39,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Plan, save ``plan.json`` and draw it (without pictures if ``viz`` is missing)."""
+    """Plan, save ``plan.json`` and draw it (without pictures if ``viz`` is missing).
+
+    Args:
+        args: The parsed command line.
+
+    Returns:
+        The exit status.
+    """
     from openup_ompl.scene import demo_scene_path
 
     dir_out(args.out)

@@ -17,7 +17,11 @@ HELP = (
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The plan, the object's error (an offset and/or the true scene), ``--out``, the
-    seed and ``--no-validate``."""
+    seed and ``--no-validate``.
+
+    Args:
+        parser: The command's parser, given its options.
+    """
     parser.add_argument("plan", type=Path, help="plan JSON (README, Files: Plan)")
     parser.add_argument(
         "--object-offset",
@@ -47,6 +51,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Read and re-validate the plan, execute it, write ``execution.json``. Returns 0
     on a held grasp, 1 on a failed one.
+
+    Args:
+        args: The parsed command line.
+
+    Returns:
+        The exit status.
 
     Raises:
         ConfigError: A bad plan, offset, true scene or ``--out``.

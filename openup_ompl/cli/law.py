@@ -12,7 +12,11 @@ HELP = "plot the hand law alone for several u (Fig. 3)"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """A robot or a scene, the values of u, the law's variants and ``--out``."""
+    """A robot or a scene, the values of u, the law's variants and ``--out``.
+
+    Args:
+        parser: The command's parser, given its options.
+    """
     source = parser.add_mutually_exclusive_group()
     source.add_argument("--robot", default=None, help="robot name or TOML (default: panda)")
     source.add_argument(
@@ -36,6 +40,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Draw the law; returns 0.
+
+    Args:
+        args: The parsed command line.
+
+    Returns:
+        The exit status.
 
     Raises:
         ConfigError: Repeated values of u, or a bad ``--out``.

@@ -15,7 +15,11 @@ HELP = (
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """The scene, the camera, the noise, the seed and ``--out``."""
+    """The scene, the camera, the noise, the seed and ``--out``.
+
+    Args:
+        parser: The command's parser, given its options.
+    """
     parser.add_argument("scene", type=Path, help="scene TOML (may hold a [camera] table)")
     parser.add_argument(
         "--camera",
@@ -39,7 +43,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Check ``--out``, then hand over to the perception package's handler."""
+    """Check ``--out``, then hand over to the perception package's handler.
+
+    Args:
+        args: The parsed command line.
+
+    Returns:
+        The exit status.
+    """
     from openup_ompl.perception.cli import perceive_command
 
     dir_out(args.out)

@@ -8,11 +8,22 @@ HELP = "list the available robots: arm DOF, hand joints, description"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """No options."""
+    """No options.
+
+    Args:
+        parser: The command's parser (left as it is).
+    """
 
 
 def run(args: argparse.Namespace) -> int:
-    """Print one row per shipped robot; returns 0."""
+    """Print one row per shipped robot; returns 0.
+
+    Args:
+        args: The parsed command line.
+
+    Returns:
+        The exit status.
+    """
     from openup_ompl.robot import available_robots, load_robot
 
     rows = [("name", "arm", "hand (driven+followers)", "description")]

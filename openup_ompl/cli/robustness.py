@@ -25,7 +25,11 @@ HELP = (
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """The sweep (u, displacements, yaws, seeds), the judge and where the tasks run."""
+    """The sweep (u, displacements, yaws, seeds), the judge and where the tasks run.
+
+    Args:
+        parser: The command's parser, given its options.
+    """
     parser.add_argument(
         "--scene", type=Path, default=None, help="scene TOML (default: scenes/lwa3_sdh_can.toml)"
     )
@@ -95,7 +99,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the sweep; print its tables and where its files are. Returns 0."""
+    """Run the sweep; print its tables and where its files are. Returns 0.
+
+    Args:
+        args: The parsed command line.
+
+    Returns:
+        The exit status.
+    """
     from openup_ompl.robustness import RobustnessOptions, markdown_tables, run_robustness
 
     dir_out(args.out)

@@ -15,7 +15,11 @@ HELP = (
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """The plan (or execution) file, ``--out`` and ``--no-validate``."""
+    """The plan (or execution) file, ``--out`` and ``--no-validate``.
+
+    Args:
+        parser: The command's parser, given its options.
+    """
     parser.add_argument(
         "plan", type=Path, help="plan JSON (README, Files: Plan), or an execution.json"
     )
@@ -27,6 +31,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Draw the file; returns 0.
+
+    Args:
+        args: The parsed command line.
+
+    Returns:
+        The exit status.
 
     Raises:
         ConfigError: A bad file or ``--out``.
