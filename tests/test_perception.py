@@ -600,8 +600,15 @@ def test_an_interrupted_closed_loop_writes_the_views_that_ended(tmp_path):
     out = tmp_path / "out"
     command = [sys.executable, "-m", "openup_ompl", "closed-loop", "--trials", "50",
                "--noise", "1", "--distance", "0.6", "--out", str(out)]  # fmt: skip
+    # Ctrl-C's default action restored in the child: a suite started in the background
+    # by a non-interactive shell passes SIGINT on as ignored, and Python then keeps it so.
     process = subprocess.Popen(
-        command, stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True, cwd=tmp_path
+        command,
+        stderr=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+        cwd=tmp_path,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     assert process.stderr is not None
     ended = 0
