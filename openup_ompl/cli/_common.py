@@ -171,6 +171,24 @@ def dir_out(path: Path) -> None:
         _writable(path, nearest)
 
 
+def add_executor_options(parser: argparse.ArgumentParser) -> None:
+    """``--workers`` and ``--scheduler``: where a sweep's tasks run (local processes or a
+    Dask cluster; :mod:`openup_ompl.executor`).
+
+    Args:
+        parser: The command's parser.
+    """
+    parser.add_argument(
+        "--workers",
+        type=count,
+        default=None,
+        help="local task processes at a time (default: the usable cores)",
+    )
+    parser.add_argument(
+        "--scheduler", type=scheduler, default=None, help="Dask scheduler address (tcp://host:port)"
+    )
+
+
 def add_planning_options(sub: argparse.ArgumentParser, default_time: float) -> None:
     """The options of a command that plans one scene (``plan``, ``demo``)."""
     from openup_ompl.planning import PLANNERS

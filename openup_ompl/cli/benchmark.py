@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from openup_ompl.cli._common import count, dir_out, out_path, scheduler, seed, time_limit
+from openup_ompl.cli._common import add_executor_options, count, dir_out, out_path, seed, time_limit
 
 HELP = "run a problem suite through ompl.tools.Benchmark; OMPL logs, database, plots"
 
@@ -40,15 +40,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--out", type=out_path, default=Path("openup-benchmark"), help="output directory"
     )
-    parser.add_argument(
-        "--workers",
-        type=count,
-        default=None,
-        help="local task processes at a time (default: the usable cores)",
-    )
-    parser.add_argument(
-        "--scheduler", type=scheduler, default=None, help="Dask scheduler address (tcp://host:port)"
-    )
+    add_executor_options(parser)
     parser.add_argument("--seed", type=seed, default=1, help="seed of run 0 (run i: seed + i)")
     parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
 

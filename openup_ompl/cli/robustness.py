@@ -8,11 +8,11 @@ from pathlib import Path
 from typing import Any
 
 from openup_ompl.cli._common import (
+    add_executor_options,
     count,
     dir_out,
     out_path,
     planner,
-    scheduler,
     seed,
     time_limit,
     unit_float,
@@ -86,15 +86,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--out", type=out_path, default=Path("openup-robustness"), help="output directory"
     )
-    parser.add_argument(
-        "--workers",
-        type=count,
-        default=None,
-        help="local task processes at a time (default: the usable cores)",
-    )
-    parser.add_argument(
-        "--scheduler", type=scheduler, default=None, help="Dask scheduler address (tcp://host:port)"
-    )
+    add_executor_options(parser)
     parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
 
 

@@ -19,7 +19,14 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     Returns:
         The ``study`` parser.
     """
-    from openup_ompl.cli._common import count, out_path, planner, scheduler, seed, time_limit
+    from openup_ompl.cli._common import (
+        add_executor_options,
+        count,
+        out_path,
+        planner,
+        seed,
+        time_limit,
+    )
     from openup_ompl.study.errors import DEFAULT_ERRORS
     from openup_ompl.study.families import KINDS, ROBOTS
     from openup_ompl.study.policies import DEFAULT_POLICIES
@@ -60,14 +67,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     )  # fmt: skip
     study.add_argument("--time", type=time_limit, default=5.0, help="time limit per plan [s]")
     study.add_argument("--out", type=out_path, required=True, help="output directory")
-    study.add_argument(
-        "--workers", type=count, default=None,
-        help="local task processes at a time (default: the usable cores)",
-    )  # fmt: skip
-    study.add_argument(
-        "--scheduler", type=scheduler, default=None,
-        help="Dask scheduler address (tcp://host:port)",
-    )  # fmt: skip
+    add_executor_options(study)
     study.add_argument("--quiet", action="store_true", help="no progress on stderr")
     study.set_defaults(handler=study_command)
     return study
