@@ -142,6 +142,7 @@ def test_grazing_points_drop_out(lwa3_camera: DepthCamera) -> None:
     assert np.all(np.isin(view.geom[cloud.pixels], view.object_geoms))
 
 
+@pytest.mark.slow
 def test_covariance_is_calibrated(lwa3_can: ou.Problem, lwa3_camera: DepthCamera) -> None:
     """Over 200 noisy views the true centre is inside the fit's 2-sigma ellipse (world x-y,
     95.45 %: chi^2_2 = 6.18) in 85-99 % of views; with the covariance scaled by 0.25, not.

@@ -31,6 +31,7 @@ def test_a_configured_view_that_sees_the_object_is_kept() -> None:
     assert "configured view" in choice.describe()
 
 
+@pytest.mark.slow
 def test_auto_finds_a_view_through_the_window(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -78,6 +79,7 @@ def test_no_view_of_a_caged_object_is_refused_by_name() -> None:
         choose_camera(caged, camera_of_scene(problem))
 
 
+@pytest.mark.slow
 def test_the_python_api_takes_camera_auto() -> None:
     """``perceive(problem, "auto")`` looks through the ring view the command uses; another
     string is a ConfigError."""

@@ -340,6 +340,7 @@ def test_accelerations_solve_the_dynamics_in_a_grasp(panda_plan, jacobian):
     assert np.abs(data.qacc - expected).max() <= 1e-6 * max(1.0, np.abs(expected).max())
 
 
+@pytest.mark.slow
 def test_show_of_an_execution_writes_the_rollout_pictures(panda_plan, tmp_path):
     """``show EXECUTION.json`` writes the rollout's HTML (the object keyed per frame) and
     its storyboard; the page loads in headless Chromium without a script error."""
