@@ -35,7 +35,12 @@ def settle(monitor: Monitor, seconds: float) -> float:
     Returns:
         The phase's duration [s]: ``seconds``, or less if the rollout ended in it.
     """
-    monitor.phase, monitor.phase_start = "settle", monitor.steps
+    return _wait(monitor, "settle", seconds)
+
+
+def _wait(monitor: Monitor, phase: str, seconds: float) -> float:
+    """Run ``phase`` for ``seconds`` [s] with the targets as they are; its duration [s]."""
+    monitor.phase, monitor.phase_start = phase, monitor.steps
     monitor.run_for(seconds)
     return _duration(monitor, seconds, round(seconds / monitor.dt))
 
@@ -271,6 +276,4 @@ def hold(monitor: Monitor, seconds: float) -> float:
     Returns:
         The phase's duration [s]: ``seconds``, or less if the rollout ended in it.
     """
-    monitor.phase, monitor.phase_start = "hold", monitor.steps
-    monitor.run_for(seconds)
-    return _duration(monitor, seconds, round(seconds / monitor.dt))
+    return _wait(monitor, "hold", seconds)
