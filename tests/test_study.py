@@ -169,3 +169,56 @@ def test_pooled_rows_sum_the_cells_and_stay_paired() -> None:
     pairs = {p["family"]: p for p in pair_rows(records, ["0", "1"])}
     assert (pairs["all"]["a_only"], pairs["all"]["b_only"], pairs["all"]["n"]) == (1, 3, 5)
     assert pairs["all"]["p_value"] == pytest.approx(mcnemar_exact(1, 3))
+
+
+def test_adaptive_plans_at_the_need_and_falls_back_when_the_scene_forbids_it(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``adaptive`` plans at the covariance rule's ``u``; when that plan fails it plans again
+    at the narrowest hand, reusing a plan the trial already made at that ``u``."""
+    import openup_ompl.study.run as run
+
+    family = parse_families(["panda-clutter"])[0]
+    template = template_scene(family)
+    source = parse_error("pose-2cm")
+    calls: list[float] = []
+
+    def planned_only_closed(believed, truth, u, plan_seed, planner, time_limit):  # type: ignore[no-untyped-def]
+        calls.append(u)
+        return {"planned": u == 0.0, "held": u == 0.0, "cause": None if u == 0.0 else "plan failed"}
+
+    monkeypatch.setattr(run, "_execute", planned_only_closed)
+    record = run_trial(
+        family, template, source, ["0", "covariance", "adaptive"], 1, seed=3, mesh_dir=tmp_path
+    )
+    need = record["results"]["covariance"]["u"]
+    assert need > 0
+    adaptive = record["results"]["adaptive"]
+    assert adaptive["u"] == 0.0 and adaptive["held"] and adaptive["fallback_from"] == need
+    assert sorted(calls) == sorted({0.0, need})  # each u planned once in the trial
+
+    calls.clear()
+    monkeypatch.setattr(run, "_execute", lambda *a: {"planned": True, "held": True, "cause": None})
+    record = run_trial(family, template, source, ["covariance", "adaptive"], 1, seed=3,
+                       mesh_dir=tmp_path)  # fmt: skip
+    assert record["results"]["adaptive"]["u"] == record["results"]["covariance"]["u"]
+    assert "fallback_from" not in record["results"]["adaptive"]
+
+
+def test_capped_never_opens_wider_than_the_need() -> None:
+    """``capped`` is the covariance rule's ``u`` cut by the swept clearance, never above it."""
+    from openup_ompl.study.geometry import HandSweep
+    from openup_ompl.study.policies import policy_u
+
+    family = parse_families(["panda-clutter"])[0]
+    template = template_scene(family)
+    for trial in range(3):
+        instance_rng, error_rng, _ = trial_seeds(2, family.name, "pose-2cm", trial)
+        truth = instance_problem(family, instance_rng, template)
+        belief = believe(truth, parse_error("pose-2cm"), error_rng)
+        assert belief.believed is not None and belief.evidence is not None
+        safe = HandSweep(belief.believed).largest_safe_u()
+        need = policy_u("covariance", belief.evidence, belief.believed, None)
+        capped = policy_u("capped", belief.evidence, belief.believed, safe)
+        assert capped == pytest.approx(min(need, safe))
+        assert policy_u("adaptive", belief.evidence, belief.believed, safe) == need

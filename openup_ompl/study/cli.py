@@ -56,7 +56,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     )
     study.add_argument(
         "--policies", nargs="+", default=list(DEFAULT_POLICIES), metavar="POLICY",
-        help="u values in [0, 1] and/or covariance, diameter, residual, adaptive",
+        help="u values in [0, 1] and/or covariance, diameter, residual, capped, adaptive",
     )  # fmt: skip
     study.add_argument("--trials", type=count, default=20, help="paired trials per cell")
     study.add_argument("--chunk", type=count, default=10, help="trials per task (shard file)")

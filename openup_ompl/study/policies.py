@@ -18,10 +18,18 @@ Every policy maps what the trial knows about the object's pose error
   of ``u`` buys (:func:`~openup_ompl.perception.uncertainty.clearance_per_u`). Without
   perception there is no fit and no residual: the policy then takes the known error's
   standard deviation for ``r``, and is the covariance rule for a round object.
-- ``"adaptive"``: the covariance rule's ``u``, capped by the largest ``u`` whose swept
-  fingers are predicted to come no nearer than a margin to a neighbour or wall on the way
-  in (:meth:`~openup_ompl.study.geometry.HandSweep.largest_safe_u`), predicted in the
-  scene as believed.
+- ``"adaptive"``: opens as far as the covariance rule says the error needs, and no farther
+  than the scene lets the hand pass: the clearance is the planner's own coupled check (no
+  finger or link may touch a neighbour, wall or shelf on the way in, in the scene as
+  believed). It plans at the covariance rule's ``u``; when no collision-free path exists
+  there (the plan fails) it plans again at :data:`FALLBACK_U`, the narrowest hand the law
+  has (:func:`~openup_ompl.study.run.run_trial`).
+- ``"capped"``: the covariance rule's ``u``, capped before planning by the largest ``u``
+  whose fingers, swept along a straight approach, are predicted to come no nearer than a
+  margin to a neighbour or wall
+  (:meth:`~openup_ompl.study.geometry.HandSweep.largest_safe_u`). A cheaper prediction than
+  ``adaptive``'s, and a more cautious one: the planner's path need not be straight, and a
+  graze the margin forbids is not a collision.
 """
 
 from __future__ import annotations
@@ -39,6 +47,7 @@ from openup_ompl.study.geometry import HandSweep
 __all__ = [
     "DEFAULT_POLICIES",
     "DIAMETER_FULL",
+    "FALLBACK_U",
     "NAMED",
     "Evidence",
     "check_policies",
@@ -49,9 +58,13 @@ __all__ = [
 #: The object diameter [m] at which the ``diameter`` policy opens fully.
 DIAMETER_FULL = 0.2
 #: Policies that are names, not numbers.
-NAMED = ("covariance", "diameter", "residual", "adaptive")
+NAMED = ("covariance", "diameter", "residual", "capped", "adaptive")
 #: The study's policies, in table order.
-DEFAULT_POLICIES = ("0", "0.3", "0.6", "1", "covariance", "diameter", "residual", "adaptive")
+DEFAULT_POLICIES = (
+    "0", "0.3", "0.6", "1", "covariance", "diameter", "residual", "capped", "adaptive",
+)  # fmt: skip
+#: The ``u`` the ``adaptive`` policy plans at when its first plan fails (unitless).
+FALLBACK_U = 0.0
 
 
 @dataclass(frozen=True)
@@ -142,10 +155,11 @@ def policy_u(policy: str, evidence: Evidence, believed: Problem, safe: float | N
         evidence: What the trial knows of its error.
         believed: The problem as believed (the object at its estimate).
         safe: ``HandSweep(believed).largest_safe_u()`` if already computed (the
-            ``adaptive`` policy computes it otherwise).
+            ``capped`` policy computes it otherwise).
 
     Returns:
-        The trial's ``u`` (unitless, in ``[0, 1]``).
+        The trial's ``u`` (unitless, in ``[0, 1]``); for ``adaptive``, the ``u`` of its
+        first plan (:data:`FALLBACK_U` if that plan fails).
     """
     if policy not in NAMED:
         return float(policy)
@@ -159,7 +173,7 @@ def policy_u(policy: str, evidence: Evidence, believed: Problem, safe: float | N
     need = u_from_covariance(
         evidence.position_covariance, evidence.rotation_covariance, believed, sizes=evidence.sizes
     )
-    if policy == "covariance":
+    if policy in ("covariance", "adaptive"):
         return need
     if safe is None:
         safe = HandSweep(believed).largest_safe_u()

@@ -37,7 +37,7 @@ from openup_ompl.scene import Problem
 from openup_ompl.study.errors import ErrorSource, believe, parse_error
 from openup_ompl.study.families import Family, instance_problem, template_scene
 from openup_ompl.study.geometry import HandSweep
-from openup_ompl.study.policies import check_policies, policy_u
+from openup_ompl.study.policies import FALLBACK_U, check_policies, policy_u
 
 __all__ = [
     "MAX_TRIALS",
@@ -198,7 +198,9 @@ def run_trial(
     Returns:
         ``{"trial", "plan_seed", "object", "obstacles", "offset", "refusal", "safe_u",
         "results": {policy: {"u", "planned", "held", "cause", "obstacle_contact",
-        "disturbed", ...}}}``.
+        "disturbed", ...}}}``; ``safe_u`` is the ``capped`` policy's cap (``None``
+        without it), and an ``adaptive`` result that fell back carries ``fallback_from``,
+        the ``u`` whose plan failed.
     """
     instance_rng, error_rng, plan_seed = trial_seeds(seed, family.name, source.name, trial)
     truth = instance_problem(family, instance_rng, template, mesh_dir)
@@ -221,15 +223,23 @@ def run_trial(
             }  # fmt: skip
         return record
     safe = None
-    if "adaptive" in policies:
+    if "capped" in policies:
         safe = HandSweep(belief.believed).largest_safe_u()
         record["safe_u"] = safe
+    believed = belief.believed
     done: dict[float, dict[str, Any]] = {}
-    for policy in policies:
-        u = round(policy_u(policy, belief.evidence, belief.believed, safe), 9)
+
+    def outcome(u: float) -> dict[str, Any]:
         if u not in done:
-            done[u] = _execute(belief.believed, truth, u, plan_seed, planner, time_limit)
-        record["results"][policy] = {"u": u, **done[u]}
+            done[u] = _execute(believed, truth, u, plan_seed, planner, time_limit)
+        return {"u": u, **done[u]}
+
+    for policy in policies:
+        result = outcome(round(policy_u(policy, belief.evidence, believed, safe), 9))
+        if policy == "adaptive" and not result["planned"] and result["u"] != FALLBACK_U:
+            # No collision-free path at the needed opening: the scene allows less.
+            result = {**outcome(FALLBACK_U), "fallback_from": result["u"]}
+        record["results"][policy] = result
     return record
 
 
