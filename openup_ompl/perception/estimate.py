@@ -11,7 +11,7 @@ from collections.abc import Callable
 import numpy as np
 import pinocchio as pin
 
-from openup_ompl.perception.covariance import SuperquadricFit
+from openup_ompl.perception.covariance import Outline, SuperquadricFit
 from openup_ompl.perception.nominal import Nominal, nominal_of
 from openup_ompl.perception.registration import register_hull
 from openup_ompl.perception.superquadric import ROTATION
@@ -35,6 +35,7 @@ def estimate(
     weights: Callable[[np.ndarray, np.ndarray], np.ndarray] | None,
     support: float | None,
     size_sigma: float = 0.0,
+    outline: Outline | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The object's pose and its covariance: the superquadric's for a primitive, with a
     turn about a symmetry axis of the shape held (it moves no surface), or a mesh's hull
@@ -50,6 +51,8 @@ def estimate(
         size_sigma: How well the scene's dimensions are known [m] (see
             :meth:`~openup_ompl.perception.covariance.SuperquadricFit.pose_covariance`;
             0: the superquadric's sizes free).
+        outline: The view's edges, for a primitive's covariance (see
+            :meth:`~openup_ompl.perception.covariance.SuperquadricFit.pose_covariance`).
 
     Returns:
         ``(pose, covariance)``: the pose ``[x, y, z, qx, qy, qz, qw]`` [m, unit
@@ -58,7 +61,7 @@ def estimate(
     """
     pose, fixed = _fitted_pose(fit, shape)
     if shape.shape != "mesh":
-        return pose, fit.pose_covariance(fixed, size_sigma, _size_groups(fixed))
+        return pose, fit.pose_covariance(fixed, size_sigma, _size_groups(fixed), outline)
     from openup_ompl.meshes import hull_points
 
     assert shape.file is not None

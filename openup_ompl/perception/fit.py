@@ -12,8 +12,10 @@ residual does not.
 
 ``scipy.optimize.least_squares`` (trust-region reflective, exponents and sizes bounded)
 is started from the cloud's principal axes, once with each principal axis as the
-superquadric's z axis, and the lowest cost wins: the cylinder is only representable with
-its axis along z, and a partial view's principal axes are not ordered by the object's.
+superquadric's z axis; each start is solved with the view's free space and the lowest cost
+wins: the cylinder is only representable with its axis along z, a partial view's principal
+axes are not ordered by the object's, and the points alone do not tell a box lying from
+one standing (the most promising start on them missed a drawer's box by 2-3 cm).
 """
 
 from __future__ import annotations
@@ -66,9 +68,9 @@ class FitOptions:
         min_size: Lower bound of the half-sizes [m].
         max_size: Upper bound of the half-sizes [m].
         starts: Principal axes tried as the superquadric's z axis (1 to 3).
-        trial_evaluations: Residual evaluations of each start before the lowest-cost one
-            is solved to convergence.
-        max_evaluations: Residual evaluations of that solve.
+        trial_evaluations: Residual evaluations of each start on the points alone (the
+            lowest-cost one sets the weights), before each is solved to convergence.
+        max_evaluations: Residual evaluations of each start's solve.
         covariance: ``"classic"``: ``s^2 (J^T J)^-1``; ``"sandwich"``: ``(J^T J)^-1 J^T
             diag(r^2) J (J^T J)^-1 n / (n - 11)`` (White's estimator: the same when every
             residual has one variance, right when they differ, as the depth noise does
@@ -404,8 +406,7 @@ def fit_superquadric(
         evaluations += int(result.nfev)
         return result
 
-    # Every start gets a few steps on the points alone; the most promising is solved to
-    # convergence, with the free space.
+    # A few steps on the points alone; the best start sets the weights and the prior's scale.
     trials = [
         (solve(x0, reference, options.trial_evaluations, None), reference)
         for x0, reference in _starts(points, options)
@@ -423,7 +424,10 @@ def fit_superquadric(
     if size_prior is not None:
         scale = _rms(first.fun[: len(points)])  # the points' spread about the best start
         prior = SizePrior(np.asarray(size_prior[0], dtype=float), size_prior[1], scale)
-    result = solve(first.x, reference, options.max_evaluations, silhouette, weights, prior)
+    # Every start solved with the free space: the points alone may pick a wrong basin.
+    budget = options.max_evaluations
+    finals = [(solve(t.x, r, budget, silhouette, weights, prior), r) for t, r in trials]
+    result, reference = min(finals, key=lambda final: float(final[0].cost))
     return _result(result.x, reference, points, silhouette, weights, prior, options, evaluations)
 
 
@@ -446,7 +450,7 @@ def _result(
     residuals = _residuals(x, *args)
     jacobian = _jacobian(x, *args)
     n = points.shape[0]
-    rows = measurement_rows(residuals, n, _free_space_rows(silhouette))
+    rows = measurement_rows(residuals, n, 0 if silhouette is None else len(silhouette.samples))
     covariance, unobservable = parameter_covariance(
         jacobian[rows], residuals[rows], n, options.covariance
     )
@@ -462,6 +466,7 @@ def _result(
         jacobian=jacobian[rows],
         residuals=residuals[rows],
         kind=options.covariance,
+        prior_rows=0 if prior is None else 3,
     )
 
 
@@ -478,9 +483,8 @@ def _checked_points(points: np.ndarray) -> np.ndarray:
         raise ConfigError("points", "non-finite values", "finite [x, y, z] rows [m]")
     # Points at one place or on one line leave the surface undetermined, and the fit
     # then finds a perfect one: a zero covariance, "certain" from no information.
-    spread = np.linalg.svd(points - points.mean(axis=0), compute_uv=False) / math.sqrt(
-        points.shape[0]
-    )
+    spread = np.linalg.svd(points - points.mean(axis=0), compute_uv=False)
+    spread = spread / math.sqrt(points.shape[0])
     if spread[1] < MIN_SPREAD:
         raise ConfigError(
             "points",
@@ -492,9 +496,3 @@ def _checked_points(points: np.ndarray) -> np.ndarray:
 
 def _rms(values: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.square(values)))) if values.size else 0.0
-
-
-def _free_space_rows(silhouette: Silhouette | None) -> int:
-    """How many residuals after the points are the free space's (:meth:`Silhouette.excess`
-    of each surface sample)."""
-    return 0 if silhouette is None else int(silhouette.samples.shape[0])

@@ -31,7 +31,7 @@ from openup_ompl.perception.camera import (
     DepthView,
     camera_of_scene,
 )
-from openup_ompl.perception.covariance import SuperquadricFit
+from openup_ompl.perception.covariance import Outline, SuperquadricFit
 from openup_ompl.perception.estimate import estimate, estimated_pose
 from openup_ompl.perception.extrinsic import (
     CameraError,
@@ -40,7 +40,13 @@ from openup_ompl.perception.extrinsic import (
     extrinsic_covariance,
 )
 from openup_ompl.perception.fit import FitOptions, Silhouette, fit_superquadric
-from openup_ompl.perception.noise import NoiseOptions, PointCloud, noisy_cloud, normal_sigma
+from openup_ompl.perception.noise import (
+    NoiseOptions,
+    PointCloud,
+    kinect_sigmas,
+    noisy_cloud,
+    normal_sigma,
+)
 from openup_ompl.perception.nominal import nominal_of
 from openup_ompl.perception.uncertainty import u_from_covariance
 from openup_ompl.perception.view import checked_view, occluded_outline, silhouette_of
@@ -208,14 +214,18 @@ def perceive(
     cloud, view, support = _as_believed(cloud, view, error, support)
     shape = silhouette_of(view, noise, cam.options, support) if silhouette else None
     weights = normal_sigma(view.position, view.rotation, noise) if weighted else None
-    first = _fitted(problem, cloud.points, fit, shape, weights, support, view, options)
+    depth = np.median((cloud.points - view.position) @ view.rotation[:, 2], keepdims=True)
+    lateral = float(kinect_sigmas(depth, np.zeros(1), noise)[1][0])
+    outline = Outline(cloud.points, view.position, cam.options.intrinsics()[0], lateral)
+    first = _fitted(problem, cloud.points, fit, shape, weights, support, view, options, outline)
     result, pose, covariance, u = first
     fits = [u]
     for _ in range(options.restarts - 1):
         # A bootstrap resample of the points: the spread of u is the fit's own instability.
         sample = cloud.points[rng.integers(0, cloud.points.shape[0], cloud.points.shape[0])]
         try:
-            fits.append(_fitted(problem, sample, fit, shape, weights, support, view, options)[3])
+            again = _fitted(problem, sample, fit, shape, weights, support, view, options, outline)
+            fits.append(again[3])
         except PerceptionError:
             continue  # a resample that collapses says nothing of the view's u
     return Perception(
@@ -240,10 +250,11 @@ def _fitted(
     support: float | None,
     view: DepthView,
     options: PerceptionOptions,
+    outline: Outline,
 ) -> tuple[SuperquadricFit, np.ndarray, np.ndarray, float]:
     """One fit of ``points``: the superquadric, the object's pose, its ``(6, 6)``
-    covariance (the fit's, the calibration errors', no turn about a symmetry axis) and
-    ``u``."""
+    covariance (the fit's with the view's ``outline``, the calibration errors', no turn
+    about a symmetry axis) and ``u``."""
     assert problem.object is not None
     prior = (nominal_of(problem.object).half, options.size_sigma) if options.size_sigma else None
     result = fit_superquadric(points, fit, shape, weights, prior)
@@ -251,8 +262,9 @@ def _fitted(
     if float(np.min(result.superquadric.sizes)) <= DEGENERATE_FACTOR * bound:
         raise DegenerateFit(result.superquadric.sizes.tolist(), bound)
     assert problem.object is not None
+    outline = dataclasses.replace(outline, points=points)
     pose, covariance = estimate(
-        result, problem.object, points, weights, support, options.size_sigma
+        result, problem.object, points, weights, support, options.size_sigma, outline
     )
     covariance = covariance + extrinsic_covariance(options, view.position, view.rotation, pose[:3])
     rotation = pin.XYZQUATToSE3(pose).rotation
