@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from openup_ompl._toml import is_integer, is_number
-from openup_ompl.exceptions import ConfigError, TooFewPoints
+from openup_ompl.exceptions import ConfigError
 from openup_ompl.perception.covariance import (
     COVARIANCES,
     SuperquadricFit,
@@ -44,6 +44,7 @@ from openup_ompl.perception.superquadric import (
     _rotations,
     _split,
     _surface_local,
+    checked_points,
 )
 
 __all__ = ["FitOptions", "Silhouette", "fit_superquadric"]
@@ -52,9 +53,6 @@ __all__ = ["FitOptions", "Silhouette", "fit_superquadric"]
 #: sensor's noise and the pixel's footprint on a slanted surface: centimetres would
 #: still be caught).
 DEPTH_MARGIN = 0.01
-#: The least RMS spread [m] of a fitted cloud about its mean in its second direction:
-#: 0.1 mm, a hundredth of the sensor noise's size.
-MIN_SPREAD = 1e-4
 
 
 @dataclass(frozen=True)
@@ -272,15 +270,24 @@ class SizePrior:
     as measurements of standard deviation ``sigma`` against points of standard deviation
     ``noise``.
 
+    The half-sizes of each pair in ``ties`` are held equal, as strongly as all the points
+    together (``tie``: the square root of their number), as the support is: a scene's
+    cylinder has a round section, its ball is round (left free, a can's partial view fits
+    an elliptical section about as well, its centre moved by millimetres).
+
     Attributes:
         half: The nominal half-extents [m].
         sigma: How well they are known [m].
         noise: The points' residuals' standard deviation [m] (the rows' scale).
+        ties: Pairs of the superquadric's half-sizes (indices) held equal.
+        tie: Weight of the ties' rows.
     """
 
     half: np.ndarray
     sigma: float
     noise: float
+    ties: tuple[tuple[int, int], ...] = ()
+    tie: float = 1.0
 
     def rows(self, sizes: np.ndarray) -> np.ndarray:
         """The half-sizes' gaps to the nominal ones, in the order that matches them best.
@@ -289,13 +296,15 @@ class SizePrior:
             sizes: Half-sizes [m], shape ``(k, 3)``.
 
         Returns:
-            Residuals [m], shape ``(k, 3)``, scaled by ``noise / sigma``.
+            Residuals [m], shape ``(k, 3 + len(ties))``: the gaps scaled by ``noise /
+            sigma``, then the tied half-sizes' differences by ``tie``.
         """
         half = np.asarray(self.half, dtype=float)
         gaps = np.stack([sizes - half[list(order)] for order in _ORDERS])  # (6, k, 3)
         best = np.argmin(np.sum(gaps**2, axis=2), axis=0)
         gap = gaps[best, np.arange(sizes.shape[0])]
-        return np.asarray(gap * (self.noise / self.sigma))
+        tied = [self.tie * (sizes[:, i] - sizes[:, j]) for i, j in self.ties]
+        return np.column_stack([gap * (self.noise / self.sigma), *tied])
 
 
 def _residuals(x: np.ndarray, *args: Any) -> np.ndarray:
@@ -348,7 +357,7 @@ def fit_superquadric(
     options: FitOptions | None = None,
     silhouette: Silhouette | None = None,
     noise: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
-    size_prior: tuple[np.ndarray, float] | None = None,
+    size_prior: tuple[np.ndarray, float, tuple[tuple[int, int], ...]] | None = None,
 ) -> SuperquadricFit:
     """Fit a superquadric to ``points`` [m] (world frame) by least squares.
 
@@ -367,10 +376,10 @@ def fit_superquadric(
         noise: ``noise(points, normals) -> sigma`` [m], the sensor noise's standard
             deviation along each unit normal (world frame), e.g.
             :func:`~openup_ompl.perception.noise.normal_sigma`; None: unweighted.
-        size_prior: The scene's half-extents [m] and how well they are known [m]: each
-            fitted half-size is pulled to the one it best matches (:class:`SizePrior`;
-            without it a fit at high noise may grow away from the camera behind its own
-            silhouette: README, Perception); None: the sizes free.
+        size_prior: The scene's half-extents [m], how well they are known [m] (each
+            fitted half-size is pulled to the one it best matches: without it a fit at
+            high noise may grow away from the camera behind its own silhouette) and the
+            pairs of half-sizes held equal (:class:`SizePrior`); None: the sizes free.
 
     Raises:
         TooFewPoints: Fewer points than twice the 11 parameters (fewer than 11 leaves the
@@ -384,7 +393,7 @@ def fit_superquadric(
     from scipy.optimize import least_squares
 
     options = options or FitOptions()
-    points = _checked_points(points)
+    points = checked_points(points)
     low = np.array([options.min_size] * 3 + [options.min_exponent] * 2 + [-np.inf] * 6)
     high = np.array([options.max_size] * 3 + [options.max_exponent] * 2 + [np.inf] * 6)
     evaluations = 0
@@ -423,7 +432,9 @@ def fit_superquadric(
     prior = None
     if size_prior is not None:
         scale = _rms(first.fun[: len(points)])  # the points' spread about the best start
-        prior = SizePrior(np.asarray(size_prior[0], dtype=float), size_prior[1], scale)
+        half, sigma, ties = size_prior
+        tie = math.sqrt(len(points))
+        prior = SizePrior(np.asarray(half, dtype=float), sigma, scale, tuple(ties), tie)
     # Every start solved with the free space: the points alone may pick a wrong basin.
     budget = options.max_evaluations
     finals = [(solve(t.x, r, budget, silhouette, weights, prior), r) for t, r in trials]
@@ -466,32 +477,8 @@ def _result(
         jacobian=jacobian[rows],
         residuals=residuals[rows],
         kind=options.covariance,
-        prior_rows=0 if prior is None else 3,
+        prior_rows=0 if prior is None else 3 + len(prior.ties),
     )
-
-
-def _checked_points(points: np.ndarray) -> np.ndarray:
-    """``points`` as an ``(N, 3)`` float array fit for the fit (see
-    :func:`fit_superquadric`'s ``Raises``)."""
-    points = np.asarray(points, dtype=float)
-    needed = 2 * N_PARAMETERS
-    if points.ndim != 2 or points.shape[1] != 3:
-        raise ConfigError("points", f"an array of shape {points.shape}", "(N, 3) rows [x, y, z]")
-    if points.shape[0] < needed:
-        raise TooFewPoints(int(points.shape[0]), needed)
-    if not np.all(np.isfinite(points)):
-        raise ConfigError("points", "non-finite values", "finite [x, y, z] rows [m]")
-    # Points at one place or on one line leave the surface undetermined, and the fit
-    # then finds a perfect one: a zero covariance, "certain" from no information.
-    spread = np.linalg.svd(points - points.mean(axis=0), compute_uv=False)
-    spread = spread / math.sqrt(points.shape[0])
-    if spread[1] < MIN_SPREAD:
-        raise ConfigError(
-            "points",
-            f"{points.shape[0]} points at one place or on a line (spread {spread[1]:.2g} m)",
-            f"points spread over a surface, more than {MIN_SPREAD:g} m in two directions",
-        )
-    return points
 
 
 def _rms(values: np.ndarray) -> float:

@@ -256,7 +256,9 @@ def _fitted(
     covariance (the fit's with the view's ``outline``, the calibration errors', no turn
     about a symmetry axis) and ``u``."""
     assert problem.object is not None
-    prior = (nominal_of(problem.object).half, options.size_sigma) if options.size_sigma else None
+    ties = {"cylinder": ((0, 1),), "sphere": ((0, 1), (1, 2))}.get(problem.object.shape, ())
+    half = nominal_of(problem.object).half
+    prior = (half, options.size_sigma, ties) if options.size_sigma else None
     result = fit_superquadric(points, fit, shape, weights, prior)
     bound = (fit or FitOptions()).min_size
     if float(np.min(result.superquadric.sizes)) <= DEGENERATE_FACTOR * bound:
