@@ -432,9 +432,9 @@ def fit_superquadric(
     prior = None
     if size_prior is not None:
         scale = _rms(first.fun[: len(points)])  # the points' spread about the best start
-        half, sigma, ties = size_prior
+        half, spread, ties = size_prior
         tie = math.sqrt(len(points))
-        prior = SizePrior(np.asarray(half, dtype=float), sigma, scale, tuple(ties), tie)
+        prior = SizePrior(np.asarray(half, dtype=float), spread, scale, tuple(ties), tie)
     # Every start solved with the free space: the points alone may pick a wrong basin.
     budget = options.max_evaluations
     finals = [(solve(t.x, r, budget, silhouette, weights, prior), r) for t, r in trials]
