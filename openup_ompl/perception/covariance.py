@@ -139,13 +139,13 @@ class SuperquadricFit:
         (the half-sizes of one of ``groups`` err together: a round section's two radii are
         one radius), ``P = diag(0, size_sigma^-2)``; the exponents are *considered*: their
         fitted covariance moves the pose through that solve. Where the points measure a
-        size (both faces of a box seen, a can's outline) its error follows the sensor
-        noise; where they do not (a box's depth seen from its front alone: centre plus
-        half-size is what the points fix) the prior bounds it at ``size_sigma``. Left
-        free instead, those trade-offs had a noise-dependent variance (``u`` jumped
-        between seeds); the half-sizes held at the fit with ``size_sigma`` each added in
-        full (the consider covariance), the prior swamped the noise (2 mm of the box's
-        and the can's 2 mm lateral sigma at every noise: ``u`` did not grow with it).
+        size (both faces of a box seen, a can's curved front) its error follows the
+        sensor noise; where they do not (a box's depth seen from its front alone: centre
+        plus half-size is what the points fix) the ``outline``'s edge and the prior bound
+        it. Left free instead, those trade-offs had a noise-dependent variance (``u``
+        jumped between seeds); with the half-sizes held at the fit and ``size_sigma`` each
+        added in full (the consider covariance), the prior swamped the noise (the box's
+        and the wall can's lateral sigma read 2 mm at every noise: ``u`` did not grow).
 
         Args:
             fixed: Indices in :data:`PARAMETERS` of the parameters held.
