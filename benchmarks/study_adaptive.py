@@ -8,8 +8,8 @@ another policy's ``u`` (``adaptive``, for instance, to see where it chose less t
 
 Run::
 
-    python benchmarks/study_adaptive.py benchmarks/results/study_lwa3_sdh/shards \
-        --out docs/results/study_adaptive.png
+    python benchmarks/study_adaptive.py benchmarks/results/study_seed1/lwa3_sdh/shards \
+        --policy adaptive --label capped --out docs/results/study_adaptive.png
 """
 
 from __future__ import annotations
@@ -49,7 +49,9 @@ def main() -> None:
     parser.add_argument("shards", type=Path, help="a study's shards directory")
     parser.add_argument("--out", type=Path, default=Path("study_adaptive.png"))
     parser.add_argument("--policy", default="capped", help="the policy whose u is shown")
+    parser.add_argument("--label", default=None, help="its name in the figure (default: --policy)")
     args = parser.parse_args()
+    name = args.label or args.policy
     trials = capped_trials(args.shards, args.policy)
     plt = _pyplot()
     fig, axes = plt.subplots(1, max(1, len(trials)), figsize=(4.2 * max(1, len(trials)), 3.4))
@@ -59,18 +61,16 @@ def main() -> None:
         for key, (label, colour) in OUTCOMES.items():
             us = [u for u, held_a, held_1 in rows if (held_a, held_1) == key]
             ys = [list(OUTCOMES).index(key)] * len(us)
-            label = label.format(policy=args.policy)
+            label = label.format(policy=name)
             ax.scatter(us, ys, s=14, color=colour, label=f"{label}: {counts[key]}")
-        labels = [label.format(policy=args.policy) for label, _ in OUTCOMES.values()]
+        labels = [label.format(policy=name) for label, _ in OUTCOMES.values()]
         ax.set_yticks(range(4), labels, fontsize=7)
         ax.set_xlim(-0.05, 1.0)
-        ax.set_xlabel(f"{args.policy}'s u")
+        ax.set_xlabel(f"{name}'s u")
         ax.set_title(f"{family}: {len(rows)} capped trials", fontsize=9)
         ax.legend(fontsize=6, loc="lower right")
         print(family, len(rows), dict(counts))
-    fig.suptitle(
-        f"where {args.policy} chose u < 1: its u and the outcome against u = 1", fontsize=9
-    )
+    fig.suptitle(f"where {name} chose u < 1: its u and the outcome against u = 1", fontsize=9)
     fig.tight_layout()
     _save(fig, args.out, dpi=120)
     print(f"wrote {args.out}")
