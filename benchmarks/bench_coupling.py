@@ -47,15 +47,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import _common  # noqa: E402
 
 import openup_ompl  # noqa: E402
+from openup_ompl._resources import data_dir  # noqa: E402
 from openup_ompl.collision import _with_margins, _without_warm_start  # noqa: E402
 from openup_ompl.ompl_setup import arm_state_space  # noqa: E402
 from openup_ompl.validity import CoupledChecker, CoupledValidityChecker  # noqa: E402
 
-ROOT = Path(__file__).resolve().parent.parent
+#: Each robot's demo scene.
 SCENES = {
-    "panda": ROOT / "scenes" / "panda_can.toml",
-    "lwa3_sdh": ROOT / "scenes" / "lwa3_sdh_can.toml",
-    "ur5_allegro": ROOT / "scenes" / "ur5_allegro_can.toml",
+    name: data_dir("scenes") / f"{name}_can.toml" for name in ("panda", "lwa3_sdh", "ur5_allegro")
 }
 #: The variants, in the tables' order: name -> label.
 LABELS = {
