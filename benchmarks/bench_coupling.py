@@ -6,9 +6,10 @@ check (``CoupledChecker.is_valid``: arm state -> forward kinematics -> ``d`` -> 
 law -> Coal) and the same class with the classical fixed preshape at the law's plateau
 (``HandLaw.fixed``: the hand never moves, no ``d``), which is how the planner checks a
 fixed hand. Beside them: each through OMPL (``si.isValid``), the bare fixed-hand floor (write
-``q``, one ``pin.computeCollisions``: what any Python checker pays), and the coupled check
-in the order it had before (forward kinematics for ``d`` first, then the collision query,
-which repeats them).
+``q``, one ``pin.computeCollisions``: what any Python checker pays), the bare check of the
+law's own configuration precomputed (identical geometry on every state), and the coupled
+check in its other order (forward kinematics for ``d`` first, then the collision query,
+which repeats them: the order it takes near the grasp).
 
 Two sets of arm states per robot: uniform in the joint limits (what a planner samples;
 almost all on the law's plateau, where the fixed hand is the law's hand) and near the
@@ -17,9 +18,12 @@ solution of the grasp). Every verdict of every check is compared with a history-
 reference, Pinocchio's pair loop with the world's margins and no GJK warm start; any
 disagreement fails the script.
 
-Every variant runs in each of several interleaved rounds (order rotated per round, GC
-off); the tables give medians over rounds, so ratios come from one run on one (possibly
-busy) machine.
+The states are cut into chunks (``--chunk``, 250); in each round every variant checks
+every chunk, the variants of one chunk one after the other (order rotated from chunk to
+chunk, GC off), timed in this thread's CPU time. Each (round, chunk) is a sample; the
+tables give per variant the median time per check over samples and the median over
+samples of its time over the fixed-hand check's of the same sample: ratios of checks run
+side by side on the same states, on one (possibly busy) machine.
 
 Run (about 30 s on 2 idle cores; times are this thread's CPU time)::
 
@@ -69,26 +73,49 @@ LABELS = {
 
 
 def timed_rounds(
-    checks: dict[str, Callable[[], object]], rounds: int, count: int
+    chunks: list[dict[str, Callable[[], object]]], sizes: list[int], rounds: int
 ) -> dict[str, list[float]]:
-    """CPU seconds of this thread per item, of each check in each round (the order
-    rotated and reversed from round to round, GC off). Thread CPU time, not wall time:
-    the time a busy machine's other processes take the core is not counted."""
-    names = list(checks)
+    """CPU seconds of this thread per state, of each check on each chunk of states in each
+    round after the first (a warm-up): one sample per (round, chunk), the checks of a
+    chunk timed one after the other (their order rotated and reversed from sample to
+    sample, GC off). Thread CPU time, not wall time: the time a busy machine's other
+    processes take the core is not counted, and short samples are each less likely to
+    meet a context switch."""
+    names = list(chunks[0])
     times: dict[str, list[float]] = {name: [] for name in names}
     gc_was_enabled = gc.isenabled()
     gc.disable()
     try:
+        sample = 0
         for r in range(rounds):
-            order = names[r % len(names) :] + names[: r % len(names)]
-            for name in order[::-1] if r % 2 else order:
-                started = time.thread_time()
-                checks[name]()
-                times[name].append((time.thread_time() - started) / count)
+            for checks, size in zip(chunks, sizes, strict=True):
+                k = sample % len(names)
+                order = names[k:] + names[:k]
+                for name in order[::-1] if sample % 2 else order:
+                    started = time.thread_time()
+                    checks[name]()
+                    if r:
+                        times[name].append((time.thread_time() - started) / size)
+                sample += 1
     finally:
         if gc_was_enabled:
             gc.enable()
     return times
+
+
+def paired_ratios(times: dict[str, list[float]]) -> dict[str, dict[str, float]]:
+    """Per variant, the median over samples of its time over the fixed-hand check's
+    (``/ fixed``; coupled via OMPL over fixed hand via OMPL) and over the bare check of the
+    law's own configuration (``/ same q``), each sample's times side by side."""
+    out = {}
+    for name, values in times.items():
+        base = times["fixed via OMPL" if name == "coupled via OMPL" else "fixed"]
+        same = times["bare same q"]
+        out[name] = {
+            "/ fixed": float(np.median(np.divide(values, base))),
+            "/ same q": float(np.median(np.divide(values, same))),
+        }
+    return out
 
 
 def near_grasp_states(
@@ -234,63 +261,83 @@ def bench_robot(robot_name: str, args: argparse.Namespace) -> dict[str, Any]:
     }
     out: dict[str, Any] = {"scene": str(SCENES[robot_name]), "sets": {}}
     for set_name, arms in sets.items():
-        checks, configurations = variants(law_checker, fixed_checker, arms)
-        references = {id(qs): reference_verdicts(law_checker, qs) for qs in configurations.values()}
-        for name, check in checks.items():
-            law_checker.forget()
-            fixed_checker.forget()
-            got = check()
-            expected = references[id(configurations[name])]
-            wrong = [i for i, (a, b) in enumerate(zip(got, expected, strict=True)) if a != b]
-            if wrong:
-                raise SystemExit(
-                    f"{robot_name}, {set_name}: {name} disagrees with the reference on "
-                    f"{len(wrong)} states (first: {wrong[:5]})"
-                )
+        chunks = [arms[k : k + args.chunk] for k in range(0, len(arms), args.chunk)]
+        checks = []
+        valid = hands_differ = 0
+        for chunk in chunks:
+            chunk_checks, configurations = variants(law_checker, fixed_checker, chunk)
+            valid += sum(verify(law_checker, fixed_checker, chunk_checks, configurations))
+            hands_differ += sum(
+                not np.array_equal(a, b)
+                for a, b in zip(configurations["coupled"], configurations["fixed"], strict=True)
+            )
+            checks.append(chunk_checks)
         distances = np.array([law_checker.normalized_distance(arm) for arm in arms])
-        hands_differ = sum(
-            not np.array_equal(a, b)
-            for a, b in zip(configurations["coupled"], configurations["fixed"], strict=True)
-        )
-        times = timed_rounds(checks, args.rounds, len(arms))  # the first round warms up
+        times = timed_rounds(checks, [len(c) for c in chunks], args.rounds)
         out["sets"][set_name] = {
             "states": len(arms),
-            "valid_fraction": float(np.mean(references[id(configurations["coupled"])])),
+            "samples": len(times["coupled"]),
+            "valid_fraction": valid / len(arms),
             "on_plateau_fraction": float(np.mean(distances > law.mga)),
             "hands_differ": int(hands_differ),
-            "median_s_per_state": {name: _common.median(v[1:]) for name, v in times.items()},
+            "median_s_per_state": {name: _common.median(v) for name, v in times.items()},
+            "ratios": paired_ratios(times),
         }
     return out
 
 
-def report(info: dict[str, Any], results: dict[str, Any], rounds: int) -> str:
+def verify(
+    law_checker: CoupledChecker,
+    fixed_checker: CoupledChecker,
+    checks: dict[str, Callable[[], list[bool]]],
+    configurations: dict[str, list[np.ndarray]],
+) -> list[bool]:
+    """Run every check once and compare its verdicts with the reference's (exit on a
+    difference); return the coupled configurations' reference verdicts."""
+    references = {id(qs): reference_verdicts(law_checker, qs) for qs in configurations.values()}
+    for name, check in checks.items():
+        law_checker.forget()
+        fixed_checker.forget()
+        got = check()
+        expected = references[id(configurations[name])]
+        wrong = [i for i, (a, b) in enumerate(zip(got, expected, strict=True)) if a != b]
+        if wrong:
+            raise SystemExit(
+                f"{law_checker.robot.name}: {name} disagrees with the reference on "
+                f"{len(wrong)} states (first: {wrong[:5]})"
+            )
+    return references[id(configurations["coupled"])]
+
+
+def report(info: dict[str, Any], results: dict[str, Any], args: argparse.Namespace) -> str:
     out = [
         "## The price of coupling: coupled vs fixed-hand state checks, identical geometry",
         "",
         _common.machine_line(info),
         "",
-        f"Median µs of thread CPU time per check over {rounds - 1} interleaved rounds (one "
-        "more warms up). / fixed: the variant's time over the fixed-hand check's (same "
-        "class, direct call; coupled via OMPL over fixed hand via OMPL). / same q: over the "
-        "bare check of the law's own configuration (identical geometry on every state). "
-        "Every verdict equal to a history-free pair-loop reference.",
+        f"µs of thread CPU time per check: the median over samples ({args.rounds - 1} "
+        f"interleaved rounds after a warm-up, each over chunks of {args.chunk} states; every "
+        "variant timed on the same chunk in each sample). / fixed: the median over samples of "
+        "the variant's time over the fixed-hand check's (same class, direct call; coupled "
+        "via OMPL over fixed hand via OMPL). / same q: the same over the bare check of the "
+        "law's own configuration (identical geometry on every state). Every verdict equal "
+        "to a history-free pair-loop reference.",
         "",
     ]
     header = ["robot", "states", "variant", "µs/check", "/ fixed", "/ same q"]
     rows = []
     for robot_name, entry in results.items():
         for set_name, s in entry["sets"].items():
-            med = s["median_s_per_state"]
+            med, ratios = s["median_s_per_state"], s["ratios"]
             for key, label in LABELS.items():
-                base = med["fixed via OMPL" if key == "coupled via OMPL" else "fixed"]
                 rows.append(
                     [
                         robot_name,
                         set_name,
                         label,
                         f"{1e6 * med[key]:.2f}",
-                        f"{med[key] / base:.3f}",
-                        f"{med[key] / med['bare same q']:.3f}",
+                        f"{ratios[key]['/ fixed']:.3f}",
+                        f"{ratios[key]['/ same q']:.3f}",
                     ]
                 )
     out.append(_common.markdown_table(header, rows, left=3))
@@ -298,7 +345,7 @@ def report(info: dict[str, Any], results: dict[str, Any], rounds: int) -> str:
     for robot_name, entry in results.items():
         for set_name, s in entry["sets"].items():
             out.append(
-                f"- {robot_name}, {set_name}: {s['states']} states, "
+                f"- {robot_name}, {set_name}: {s['states']} states ({s['samples']} samples), "
                 f"{100 * s['valid_fraction']:.1f} % collision-free, "
                 f"{100 * s['on_plateau_fraction']:.1f} % on the law's plateau (d > mga), "
                 f"the fixed hand differs from the law's in {s['hands_differ']}."
@@ -313,11 +360,12 @@ def main() -> None:
     )
     parser.add_argument("--states", type=int, default=2000, help="states per set (2000)")
     parser.add_argument("--rounds", type=int, default=9, help="interleaved rounds (9)")
+    parser.add_argument("--chunk", type=int, default=250, help="states per sample (250)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the states")
     parser.add_argument("--json", metavar="PATH", help="also write the results as JSON")
     args = parser.parse_args()
-    if args.states < 1 or args.rounds < 2:
-        parser.error("--states must be positive and --rounds at least 2")
+    if args.states < 1 or args.chunk < 1 or args.rounds < 2:
+        parser.error("--states and --chunk must be positive, --rounds at least 2")
     ou.setLogLevel(ou.LOG_ERROR)
     info = _common.machine_info()
     results = {}
@@ -325,7 +373,7 @@ def main() -> None:
         started = time.perf_counter()
         results[robot_name] = bench_robot(robot_name, args)
         print(f"{robot_name}: {time.perf_counter() - started:.1f} s", file=sys.stderr)
-    print(report(info, results, args.rounds))
+    print(report(info, results, args))
     _common.write_json(
         args.json,
         {
