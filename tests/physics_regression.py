@@ -141,6 +141,25 @@ def record_all(specs: list[tuple[str, int, list[list[float]]]] = CASES, path: Pa
     path.write_text(json.dumps({"cases": cases}, indent=1) + "\n")
 
 
+def replay(seed: int, index: int, trials: list[int]) -> dict[str, Any]:
+    """An executor task (``physics_regression:replay``): the throughput set's case
+    ``index`` run at its ``trials`` (indices into its offsets) with the sweep's settings
+    (``PhysicsOptions(early_end=True)``), the object's jitter seeded by ``seed``.
+
+    Returns:
+        ``{"index", "records"}``: each trial's execution record without frames.
+    """
+    from openup_ompl.physics import PhysicsOptions, Rollout
+
+    case = load(TRIALS)[index]
+    rollout = Rollout(plan_contents(case), PhysicsOptions(early_end=True))
+    records = [
+        rollout.run(case["trials"][i]["offset"], seed=seed, frames=False).to_dict(frames=False)
+        for i in trials
+    ]
+    return {"index": index, "records": records}
+
+
 if __name__ == "__main__":
     if sys.argv[1:] == ["--trials"]:
         record_all(TRIAL_CASES, TRIALS)
