@@ -40,6 +40,8 @@ def capped_trials(shards: Path, policy: str) -> dict[str, list[tuple[float, bool
             a, one = results.get(policy), results.get("1")
             if a is None or one is None or a.get("u") is None or a["u"] >= 1.0:
                 continue
+            if not (a.get("planned") and one.get("planned")):
+                continue
             out.setdefault(shard["family"], []).append((a["u"], bool(a["held"]), bool(one["held"])))
     return out
 
@@ -67,7 +69,7 @@ def main() -> None:
         ax.set_yticks(range(4), labels, fontsize=7)
         ax.set_xlim(-0.05, 1.0)
         ax.set_xlabel(f"{name}'s u")
-        ax.set_title(f"{family}: {len(rows)} capped trials", fontsize=9)
+        ax.set_title(f"{family}: {len(rows)} trials with u < 1", fontsize=9)
         ax.legend(fontsize=6, loc="lower right")
         print(family, len(rows), dict(counts))
     fig.suptitle(f"where {name} chose u < 1: its u and the outcome against u = 1", fontsize=9)
