@@ -15,13 +15,19 @@ Every instance is planned with every planner of ``--planners`` at every ``u`` of
 (seed: the instance index + 1), and every plan's file contents are re-checked by the
 tests' independent checker (``tests/recheck.py``: rebuilt from the plan's URDF, SRDF,
 shapes and law alone; each segment re-interpolated at ``--recheck-step`` rad of joint
-motion, finer than the planner's motion check). A plan is *valid* when no re-checked
-state collides, its hand is the law's at every row (1e-9), it leaves from the start and
-ends at the grasp (1 mm, 0.01 rad).
+motion, finer than the planner's motion check; all of a plan's states checked in one
+batch through Coal's broad phase). A plan is *valid* when no re-checked state collides,
+its hand is the law's at every row (1e-9), it leaves from the start and ends at the
+grasp (1 mm, 0.01 rad).
 
-Runs go through :mod:`openup_ompl.executor`: one task per instance (its plans), one
-shard per task in ``OUT/shards``; a rerun (a larger ``--plans`` too) skips finished
-tasks. ``OUT/soak.json`` holds every plan's record summed up, ``OUT/soak.md`` the table.
+Runs go through :mod:`openup_ompl.executor`: one task per block of ``--block``
+consecutive instances of one source (a task process starts in about a second; its
+re-check builds each robot's model once), one shard per task in ``OUT/shards``; a rerun
+skips finished tasks (a larger ``--plans`` keeps every whole block and redoes the last,
+partial block of each source). ``OUT/soak.json`` sums up every plan's record;
+``OUT/soak.md`` is the results-page section: the command, the counts per robot, source,
+planner and ``u``, the unsolved and invalid plans, and where this run's time went
+(seconds per plan of each phase, plans per second per worker).
 
 Usage (from the repository root)::
 
