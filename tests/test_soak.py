@@ -3,6 +3,7 @@ shards resume, and its re-check refuses a tampered plan and finds every collidin
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import subprocess
@@ -95,3 +96,23 @@ def test_recheck_broad_phase_flags_the_states_every_pair_flags(scene: str) -> No
     flagged = recheck.colliding_states(model, geometry, states)
     assert 0 < sum(every_pair) < len(states)
     assert flagged.tolist() == every_pair
+
+
+def test_soak_blocks_cover_every_instance_once_and_keep_their_keys(tmp_path: Path) -> None:
+    """The tasks' blocks hold every instance of the round-robin once (whole blocks but
+    each source's last), and a larger ``--plans`` keeps every whole block's key."""
+    soak = pytest.importorskip("benchmarks.soak")
+    options = soak.SoakOptions(plans=300, planners=("ikbirrt",), us=(0.3,), block=4)
+    tasks = soak.make_tasks(options, tmp_path)
+    sources = soak.generators(options.robots)
+    instances = [
+        (task.kwargs["source"]["name"], task.kwargs["first"] + k)
+        for task in tasks
+        for k in range(task.kwargs["count"])
+    ]
+    expected = [(sources[k % len(sources)]["name"], k // len(sources)) for k in range(300)]
+    assert sorted(instances) == sorted(expected)
+    assert all(1 <= task.kwargs["count"] <= 4 for task in tasks)
+    whole = {task.key for task in tasks if task.kwargs["count"] == 4}
+    more = soak.make_tasks(dataclasses.replace(options, plans=600), tmp_path)
+    assert whole and whole <= {task.key for task in more}
