@@ -469,7 +469,7 @@ class CoupledValidityChecker(ob.StateValidityChecker):
         self._n = checker.robot.arm_idx.size
 
     def isValid(self, state: ob.State) -> bool:  # noqa: N802 - OMPL's name
-        """OMPL's state check: :meth:`CoupledChecker.is_valid` of the arm state.
+        """OMPL's state check: :meth:`~openup_ompl.state_check.StateChecker.is_valid` of the arm.
 
         Returns:
             Whether it is collision-free, the hand set by the law.
