@@ -236,18 +236,13 @@ class StateChecker:
         self.states_checked += 1
         context = self.finest_world.context()
         model, data, manager, q = self._model, context.data, context.manager, context.q
-        q[self._arm_sel] = arm
         law = self.law
         collides = None
-        if law.fixed_clipped is not None:
-            q[self._hand_sel] = law.fixed_clipped
-            d = math.inf
-        elif self._near:  # forward kinematics for d first
-            pin.forwardKinematics(model, data, q)
-            d = self._placed_distance(context)
+        if law.fixed_clipped is not None or self._near:  # forward kinematics for d first
+            d = self._fill(context, arm)
             self._near = d <= self._near_limit
-            self._set_hand(context, d)
         else:  # the plateau's hand first, d from the placements the query leaves
+            q[self._arm_sel] = arm
             q[self._hand_sel] = law.high
             collides = pin.computeCollisions(model, data, manager, q, True)
             palm = context.palm

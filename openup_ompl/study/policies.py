@@ -159,7 +159,8 @@ def policy_u(policy: str, evidence: Evidence, believed: Problem, safe: float | N
 
     Returns:
         The trial's ``u`` (unitless, in ``[0, 1]``); for ``adaptive``, the ``u`` of its
-        first plan (:data:`FALLBACK_U` if that plan fails).
+        first plan (:func:`~openup_ompl.study.run.run_trial` plans again at
+        :data:`FALLBACK_U` if that plan fails).
     """
     if policy not in NAMED:
         return float(policy)
