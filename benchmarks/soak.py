@@ -15,13 +15,19 @@ Every instance is planned with every planner of ``--planners`` at every ``u`` of
 (seed: the instance index + 1), and every plan's file contents are re-checked by the
 tests' independent checker (``tests/recheck.py``: rebuilt from the plan's URDF, SRDF,
 shapes and law alone; each segment re-interpolated at ``--recheck-step`` rad of joint
-motion, finer than the planner's motion check). A plan is *valid* when no re-checked
-state collides, its hand is the law's at every row (1e-9), it leaves from the start and
-ends at the grasp (1 mm, 0.01 rad).
+motion, finer than the planner's motion check; all of a plan's states checked in one
+batch through Coal's broad phase). A plan is *valid* when no re-checked state collides,
+its hand is the law's at every row (1e-9), it leaves from the start and ends at the
+grasp (1 mm, 0.01 rad).
 
-Runs go through :mod:`openup_ompl.executor`: one task per instance (its plans), one
-shard per task in ``OUT/shards``; a rerun (a larger ``--plans`` too) skips finished
-tasks. ``OUT/soak.json`` holds every plan's record summed up, ``OUT/soak.md`` the table.
+Runs go through :mod:`openup_ompl.executor`: one task per block of ``--block``
+consecutive instances of one source (a task process starts in about a second; its
+re-check builds each robot's model once), one shard per task in ``OUT/shards``; a rerun
+skips finished tasks (a larger ``--plans`` keeps every whole block and redoes the last,
+partial block of each source). ``OUT/soak.json`` sums up every plan's record;
+``OUT/soak.md`` is the results-page section: the command, the counts per robot, source,
+planner and ``u``, the unsolved and invalid plans, and where this run's time went
+(seconds per plan of each phase, plans per second per worker).
 
 Usage (from the repository root)::
 
@@ -37,6 +43,7 @@ import importlib.util
 import json
 import math
 import os
+import shlex
 import sys
 import time
 from collections import Counter
@@ -179,7 +186,6 @@ def _recheck(plan: oo.Plan, recheck: Any, step: float) -> dict[str, Any]:
 
 
 def soak_instance(
-    seed: int,
     source: dict[str, Any],
     index: int,
     planners: list[str],
@@ -188,8 +194,9 @@ def soak_instance(
     recheck_step: float,
     mesh_dir: str,
 ) -> dict[str, Any]:
-    """Plan instance ``index`` of ``source`` with every planner and ``u``, re-check each
-    plan (an executor task; ``seed`` seeds OMPL, the plans use ``index + 1``)."""
+    """Plan instance ``index`` of ``source`` with every planner and ``u`` (seed
+    ``index + 1``), re-check each plan; the record also holds where the time went [s]:
+    posing the instance (``scene_s``), setting up (``setup_s``), planning, re-checking."""
     started = time.perf_counter()
     recheck = _recheck_module()
     base = {"robot": source["robot"], "source": source["kind"], "name": source["name"]}
@@ -197,8 +204,11 @@ def soak_instance(
         problem = instance(source, index, Path(mesh_dir))
     except (ConfigError, InvalidProblem) as error:
         return {**base, "index": index, "refused": str(error), "plans": []}
+    scene_s = time.perf_counter() - started
+    setup_s = 0.0
     plans = []
     for u in us:
+        set_up = time.perf_counter()
         try:
             setup = oo.GraspPlanningSetup(problem, u=u)
         except OpenUpError as error:  # the problem cannot be posed (start, grasp)
@@ -207,20 +217,45 @@ def soak_instance(
                 {"planner": p, "u": u, "status": "refused", "error": refused} for p in planners
             ]
             continue
+        finally:
+            setup_s += time.perf_counter() - set_up
         for planner in planners:
             row: dict[str, Any] = {"planner": planner, "u": u, "seed": index + 1}
+            solving = time.perf_counter()
             try:
                 plan = setup.solve(time_limit=time_limit, planner=planner, seed=index + 1)
             except PlanningFailed as error:
+                plan = None
                 row.update(status="unsolved", error=str(error))
-            else:
+            row["solve_s"] = time.perf_counter() - solving
+            if plan is not None:
                 check = _recheck(plan, recheck, recheck_step)
                 status = "valid" if check["valid"] else "invalid"
                 row.update(status=status, rows=int(plan.path.shape[0]), **check)
                 row["solve_time_s"] = plan.solve_time_s
             plans.append(row)
     wall = time.perf_counter() - started
-    return {**base, "index": index, "refused": None, "plans": plans, "wall_s": wall}
+    return {
+        **base,
+        "index": index,
+        "refused": None,
+        "plans": plans,
+        "wall_s": wall,
+        "scene_s": scene_s,
+        "setup_s": setup_s,
+    }
+
+
+def soak_block(
+    seed: int, source: dict[str, Any], first: int, count: int, **settings: Any
+) -> dict[str, Any]:
+    """Instances ``first, ..., first + count - 1`` of ``source``, one after the other in
+    this process (an executor task: ``seed`` seeds OMPL once, before the first; the
+    robot models of the re-check are built once). Keyword arguments: those of
+    :func:`soak_instance`."""
+    started = time.perf_counter()
+    instances = [soak_instance(source, index, **settings) for index in range(first, first + count)]
+    return {"instances": instances, "wall_s": time.perf_counter() - started}
 
 
 # -- the sweep -----------------------------------------------------------------------------
@@ -237,6 +272,8 @@ class SoakOptions:
         time_limit: Planning time per plan [s].
         recheck_step: Joint motion [rad] between re-checked states.
         robots: Robots to soak.
+        block: Instances of one source per task process (a process starts in about
+            1.5 s, imports and robot models included; a killed task loses its block).
     """
 
     plans: int = 10_000
@@ -245,6 +282,7 @@ class SoakOptions:
     time_limit: float = 5.0  # [s]
     recheck_step: float = RECHECK_STEP  # [rad]
     robots: tuple[str, ...] = ROBOTS
+    block: int = 4
 
     def __post_init__(self) -> None:
         if not (isinstance(self.plans, int) and self.plans >= 1):
@@ -260,11 +298,16 @@ class SoakOptions:
         for robot in self.robots:
             if robot not in ROBOTS:
                 raise ConfigError("robot", robot, f"one of {list(ROBOTS)}")
+        if not (isinstance(self.block, int) and self.block >= 1):
+            raise ConfigError("block", self.block, "a positive integer")
 
 
 def make_tasks(options: SoakOptions, mesh_dir: Path) -> list[Task]:
-    """One task per instance, round-robin over the sources (so that a short soak covers
-    every robot and source), enough for ``options.plans`` plans."""
+    """Enough instances for ``options.plans`` plans, taken round-robin over the sources
+    (instance ``k`` is index ``k // S`` of source ``k % S``, so that a short soak covers
+    every robot and source); one task per block of ``options.block`` consecutive indices
+    of a source, the first blocks of every source first. A larger ``--plans`` keeps the
+    whole blocks (their keys) and redoes the last, partial one of a source."""
     sources = generators(options.robots)
     per_instance = len(options.planners) * len(options.us)
     count = math.ceil(options.plans / per_instance)
@@ -277,18 +320,21 @@ def make_tasks(options: SoakOptions, mesh_dir: Path) -> list[Task]:
     }
     files = sorted({p for s in sources for p in oo.load_scene(_template(s)).source_files()})
     digest = settings_digest(shared, [*files, ROOT / "tests" / "recheck.py"])
+    indices = [len(range(s, count, len(sources))) for s in range(len(sources))]
     tasks = []
-    for k in range(count):
-        source = sources[k % len(sources)]
-        index = k // len(sources)
-        tasks.append(
-            Task(
-                key=f"{source['kind']}-{source['name']}-{index}-{digest}",
-                function="benchmarks.soak:soak_instance",
-                kwargs={**shared, "source": source, "index": index},
-                seed=index + 1,
+    for first in range(0, max(indices, default=0), options.block):
+        for source, n in zip(sources, indices, strict=True):
+            if first >= n:
+                continue
+            size = min(options.block, n - first)
+            tasks.append(
+                Task(
+                    key=f"{source['kind']}-{source['name']}-{first}-{size}-{digest}",
+                    function="benchmarks.soak:soak_block",
+                    kwargs={**shared, "source": source, "first": first, "count": size},
+                    seed=first + 1,
+                )
             )
-        )
     return tasks
 
 
@@ -300,51 +346,164 @@ def _template(source: dict[str, Any]) -> Path:
     return data_dir("scenes") / FAMILY_ROBOTS[source["robot"]]
 
 
+STATUSES = ("valid", "invalid", "unsolved", "refused")
+#: The columns of a plan's record that :func:`summarize` times [s], in order.
+PHASES = ("scene_s", "setup_s", "solve_s", "recheck_s")
+
+
 def summarize(records: list[dict[str, Any]]) -> dict[str, Any]:
-    """Counts of plans by status, overall and per robot, source and planner."""
+    """Counts of plans by status, overall and per robot, source, planner and ``u``; the
+    invalid plans; where the task processes' time went [s].
+
+    Args:
+        records: The tasks' records (:func:`soak_block`).
+
+    Returns:
+        A JSON-able dict: ``plans``, ``counts`` (by status), ``groups`` (by ``"robot
+        panda"``, ``"source family"``, ``"planner bitstar"``, ``"u 0.3"``), ``unsolved``
+        (by robot, source and planner), ``invalid`` (their rows), ``states_rechecked``,
+        ``time_s`` (summed over the instances: each phase of :data:`PHASES`, ``instance``
+        their whole wall time, ``task`` the task functions' wall time).
+    """
     total: Counter[str] = Counter()
     groups: dict[str, Counter[str]] = {}
+    unsolved: Counter[str] = Counter()
     invalid = []
-    refused_instances = 0
-    for record in records:
-        refused_instances += record["refused"] is not None
+    time_s = dict.fromkeys([*PHASES, "instance"], 0.0)
+    instances = [record for task in records for record in task["instances"]]
+    for record in instances:
+        time_s["instance"] += record.get("wall_s", 0.0)
+        time_s["scene_s"] += record.get("scene_s", 0.0)
+        time_s["setup_s"] += record.get("setup_s", 0.0)
         for row in record["plans"]:
             total[row["status"]] += 1
-            for key in (record["robot"], record["source"], row["planner"]):
+            time_s["solve_s"] += row.get("solve_s", 0.0)
+            time_s["recheck_s"] += row.get("recheck_s", 0.0)
+            keys = (
+                f"robot {record['robot']}",
+                f"source {record['source']}",
+                f"planner {row['planner']}",
+                f"u {row['u']:g}",
+            )
+            for key in keys:
                 groups.setdefault(key, Counter())[row["status"]] += 1
+            if row["status"] == "unsolved":
+                unsolved[f"{record['robot']} {record['source']} {row['planner']}"] += 1
             if row["status"] == "invalid":
                 invalid.append({k: record[k] for k in ("robot", "name", "index")} | row)
     return {
-        "instances": len(records),
-        "refused_instances": refused_instances,
+        "instances": len(instances),
+        "refused_instances": sum(record["refused"] is not None for record in instances),
         "plans": sum(total.values()),
         "counts": dict(total),
-        "groups": {key: dict(counter) for key, counter in sorted(groups.items())},
+        "groups": {key: dict(groups[key]) for key in sorted(groups, key=_group_order)},
+        "unsolved": dict(sorted(unsolved.items())),
         "invalid": invalid,
         "states_rechecked": sum(
-            row.get("states", 0) for record in records for row in record["plans"]
+            row.get("states", 0) for record in instances for row in record["plans"]
         ),
-        "task_wall_s": sum(record.get("wall_s", 0.0) for record in records),
+        "time_s": {**time_s, "task": sum(task.get("wall_s", 0.0) for task in records)},
     }
 
 
-def markdown(summary: dict[str, Any], options: SoakOptions) -> str:
-    """The summary as a results-page table."""
-    statuses = ("valid", "invalid", "unsolved", "refused")
+def _group_order(key: str) -> tuple[int, str]:
+    kind, _, name = key.partition(" ")
+    return ["robot", "source", "planner", "u"].index(kind), name
+
+
+def _row(name: str, counts: dict[str, int]) -> str:
+    return f"| {name} | " + " | ".join(str(counts.get(s, 0)) for s in STATUSES) + " |"
+
+
+def markdown(summary: dict[str, Any], options: SoakOptions, command: str) -> str:
+    """The summary as a results-page section: the command, the settings, one table of
+    counts (all, then per robot, source, planner, ``u``), the unsolved and invalid plans,
+    and where the time went.
+
+    Args:
+        summary: :func:`summarize`'s, with ``run`` (:func:`timing`) when tasks ran now.
+        options: The soak's settings.
+        command: The command line that made it.
+
+    Returns:
+        Markdown text.
+    """
     lines = [
-        f"{summary['plans']} plans of {summary['instances']} instances "
+        f"`{command}`: {summary['plans']} plans of {summary['instances']} instances "
         f"({summary['refused_instances']} instances refused as posed); planners "
-        f"{', '.join(options.planners)}; u in {list(options.us)}; "
-        f"{options.time_limit:g} s per plan; re-checked every {options.recheck_step:g} rad "
-        f"({summary['states_rechecked']} states).",
+        f"{', '.join(options.planners)}; u in {', '.join(f'{u:g}' for u in options.us)}; "
+        f"{options.time_limit:g} s per plan; each plan re-checked every "
+        f"{options.recheck_step:g} rad of joint motion ({summary['states_rechecked']:,} "
+        "states in all).",
         "",
-        "| group | " + " | ".join(statuses) + " |",
-        "|---|" + "---:|" * len(statuses),
-        "| all | " + " | ".join(str(summary["counts"].get(s, 0)) for s in statuses) + " |",
+        "| plans | " + " | ".join(STATUSES) + " |",
+        "|---|" + "---:|" * len(STATUSES),
+        _row("all", summary["counts"]),
+        *(_row(key, counts) for key, counts in summary["groups"].items()),
+        "",
     ]
-    for key, counts in summary["groups"].items():
-        lines.append(f"| {key} | " + " | ".join(str(counts.get(s, 0)) for s in statuses) + " |")
+    if summary["unsolved"]:
+        listed = ", ".join(f"{key} {n}" for key, n in summary["unsolved"].items())
+        lines.append(
+            f"Unsolved within {options.time_limit:g} s (robot, source, planner): {listed}."
+        )
+    if summary["invalid"]:
+        lines.append(f"Invalid plans ({len(summary['invalid'])}):")
+        lines += [
+            f"- {row['robot']} {row['name']} #{row['index']}, {row['planner']} u = {row['u']:g}: "
+            f"colliding segments {row['colliding'][:10]}, hand error {row['hand_error']:.2g}, "
+            f"position error {row['position_error']:.2g} m, rotation error "
+            f"{row['rotation_error']:.2g} rad, start error {row['start_error']:.2g} rad"
+            for row in summary["invalid"]
+        ]
+    else:
+        lines.append("Invalid plans: none.")
+    if "run" in summary:
+        lines += ["", timing_text(summary["run"])]
     return "\n".join(lines) + "\n"
+
+
+def timing(ran: list[dict[str, Any]], wall: float, workers: int) -> dict[str, Any]:
+    """Where this run's time went: the tasks it ran (``ran``, their records) took ``wall``
+    seconds on ``workers`` processes.
+
+    Returns:
+        ``plans``, ``wall_s``, ``workers``, ``plans_per_s_per_worker`` and ``per_plan_s``:
+        seconds per plan of each phase of :data:`PHASES`, ``other`` (the rest of the
+        instances' time: results, files) and ``outside`` (the workers' time outside the
+        task functions: process start-up, imports, waiting at the end).
+    """
+    part = summarize(ran)
+    plans = max(part["plans"], 1)
+    spent = part["time_s"]
+    per_plan = {phase: spent[phase] / plans for phase in PHASES}
+    per_plan["other"] = (spent["task"] - sum(spent[phase] for phase in PHASES)) / plans
+    per_plan["outside"] = (wall * workers - spent["task"]) / plans
+    return {
+        "plans": part["plans"],
+        "wall_s": wall,
+        "workers": workers,
+        "plans_per_s_per_worker": part["plans"] / (wall * workers),
+        "per_plan_s": per_plan,
+    }
+
+
+def timing_text(run: dict[str, Any]) -> str:
+    """One paragraph on :func:`timing`'s figures."""
+    names = {
+        "scene_s": "posing the instance",
+        "setup_s": "setting up",
+        "solve_s": "planning",
+        "recheck_s": "re-checking",
+        "other": "the rest of the task",
+        "outside": "process start-up and idle workers",
+    }
+    parts = ", ".join(f"{names[k]} {v:.3f}" for k, v in run["per_plan_s"].items())
+    return (
+        f"This run: {run['plans']} plans in {run['wall_s']:.0f} s on {run['workers']} "
+        f"worker(s), {run['plans_per_s_per_worker']:.3f} plans per second per worker; "
+        f"seconds per plan: {parts}."
+    )
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -355,6 +514,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--robots", nargs="+", default=list(ROBOTS))
     parser.add_argument("--time", type=float, default=5.0, help="time limit per plan [s]")
     parser.add_argument("--recheck-step", type=float, default=RECHECK_STEP, help="[rad]")
+    parser.add_argument("--block", type=int, default=4, help="instances per task process")
     parser.add_argument("--workers", type=int, default=1, help="task processes at a time")
     parser.add_argument("--scheduler", default=None, help="Dask scheduler address")
     parser.add_argument("--out", type=Path, default=Path("soak"))
@@ -368,6 +528,7 @@ def main(argv: list[str] | None = None) -> int:
             time_limit=args.time,
             recheck_step=args.recheck_step,
             robots=tuple(args.robots),
+            block=args.block,
         )
     except ConfigError as error:
         print(f"soak: error: {error}", file=sys.stderr)
@@ -380,15 +541,22 @@ def main(argv: list[str] | None = None) -> int:
     os.environ["PYTHONPATH"] = os.pathsep.join(dict.fromkeys(paths))
     tasks = make_tasks(options, mesh_dir)
     started = time.perf_counter()
-    run_tasks(
+    ran = run_tasks(
         tasks, out / "shards", workers=args.workers, scheduler=args.scheduler, quiet=args.quiet
     )
     wall = time.perf_counter() - started
     summary = summarize(load_records(tasks, out / "shards"))
-    summary["wall_s_this_run"] = wall
+    if ran and args.scheduler is None:
+        now = load_records([task for task in tasks if task.key in set(ran)], out / "shards")
+        summary["run"] = timing(now, wall, args.workers)
+    command = shlex.join(
+        ["python", "benchmarks/soak.py", *(sys.argv[1:] if argv is None else argv)]
+    )
+    summary["command"] = command
     (out / "soak.json").write_text(json.dumps(summary, indent=1) + "\n")
-    (out / "soak.md").write_text(markdown(summary, options))
-    print(markdown(summary, options), end="")
+    text = markdown(summary, options, command)
+    (out / "soak.md").write_text(text)
+    print(text, end="")
     return 1 if summary["counts"].get("invalid", 0) else 0
 
 

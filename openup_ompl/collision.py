@@ -109,6 +109,10 @@ class ThreadContext:
         manager: Coal's broadphase manager over that geometry.
         q: A full configuration [rad or m], written before each check.
         hand: A buffer for the hand joint values [rad or m] the law computes.
+        palm: The palm frame's position [m, world frame] in ``data.oMf``, a view that
+            each ``pin.updateFramePlacement`` of the palm frame updates in place (read
+            without a copy through Pinocchio's binding); ``None`` where the binding
+            returns copies (see :func:`live_translation`).
     """
 
     data: pin.Data
@@ -116,6 +120,26 @@ class ThreadContext:
     manager: Any
     q: np.ndarray
     hand: np.ndarray
+    palm: np.ndarray | None = None
+
+
+def live_translation(model: pin.Model, data: pin.Data, frame: int) -> np.ndarray | None:
+    """A view of ``data.oMf[frame].translation`` [m] that Pinocchio's frame updates write
+    through, or ``None`` if the binding gives a copy (checked by writing through it).
+
+    The view shares ``data``'s memory: keep ``data`` alive as long as the view.
+
+    Args:
+        model: The robot's Pinocchio model.
+        data: Its data (the view's owner).
+        frame: A frame index of ``model``.
+    """
+    view = data.oMf[frame].translation
+    view[0] = np.nan
+    live = bool(np.isnan(data.oMf[frame].translation[0]))
+    pin.forwardKinematics(model, data, pin.neutral(model))
+    pin.updateFramePlacement(model, data, frame)
+    return view if live else None
 
 
 #: Name prefix of the scene's geometries (obstacles and object) in a collision model.
@@ -208,7 +232,12 @@ class CollisionWorld:
             manager = _Manager(self.model, self.geometry_model, geometry_data)
             robot = self.problem.robot
             context = ThreadContext(
-                data, geometry_data, manager, robot.neutral(), np.empty(robot.hand_idx.size)
+                data,
+                geometry_data,
+                manager,
+                robot.neutral(),
+                np.empty(robot.hand_idx.size),
+                live_translation(self.model, data, robot.palm_frame_id),
             )
             self._local.context = context
             return context

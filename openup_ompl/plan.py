@@ -1,8 +1,8 @@
 """Plans: the result of a solve, and the plan file (README, Files: Plan).
 
-The file's schema is one table, :data:`PLAN_FIELDS`: each key with its writer (from a
-:class:`Plan`) beside its reader (into a :class:`PlanFile`). The checks of a path against
-its own robot and law live in :mod:`~openup_ompl.plan_checks`.
+The file's schema is one table, :data:`PLAN_FIELDS`: each key's writer (from a
+:class:`Plan`) beside its reader (into a :class:`PlanFile`). :mod:`~openup_ompl.plan_checks`
+checks a path against its own robot and law.
 """
 
 from __future__ import annotations
@@ -58,20 +58,17 @@ class Plan:
 
     Attributes:
         path: ``(N, nq)`` full configurations (arm and hand) in Pinocchio's ``q`` order,
-            no robot point moving more than the checker's resolution between consecutive
-            rows (the straight arm motion between them checked exactly),
-            the hand set by the law at every row. Row 0 is the start; the last row puts the
-            palm on the grasp pose.
-        waypoints: ``(M, dof)`` arm configurations the planner returned (after
-            simplification, if any); ``path`` interpolates them.
+            no robot point moving more than the checker's resolution between rows (the
+            arm motion between them checked exactly), the hand set by the law at every
+            row. Row 0 is the start; the last row puts the palm on the grasp pose.
+        waypoints: ``(M, dof)`` the planner's arm waypoints (simplified), which ``path`` joins.
         status: OMPL's planner status, as text.
         planner: Planner name.
         seed: Seed of the run.
         solve_time_s: Planning time [s] (simplification excluded).
         problem: The problem solved.
         law: The hand law the plan follows.
-        start_palm_distance: Palm-to-grasp distance at the start [m] (Algorithm 1's
-            denominator).
+        start_palm_distance: Palm-to-grasp distance at the start [m] (D's denominator).
         stats: Counters of the run (validity checks, IK calls, ...).
     """
 
@@ -97,14 +94,20 @@ class Plan:
         return self.path[:, self.problem.robot.hand_idx]
 
     def to_dict(self) -> dict[str, Any]:
-        """The plan file's contents (README, Files: Plan), in :data:`PLAN_FIELDS` order."""
+        """The plan file's contents (README, Files: Plan).
+
+        Returns:
+            Its keys in :data:`PLAN_FIELDS` order, JSON values (lengths [m], angles [rad]).
+        """
         return {spec.key: spec.write(self) for spec in PLAN_FIELDS}
 
     def save(self, path: str | Path) -> Path:
-        """Write the plan file (JSON, README, Files: Plan), atomically; returns its path.
+        """Write the plan file (JSON, README, Files: Plan), atomically.
 
         Args:
             path: The file to write (a :class:`~openup_ompl.exceptions.ConfigError` if a directory).
+        Returns:
+            ``path``, as a ``Path``.
         """
         if not isinstance(path, (str, os.PathLike)) or Path(path).is_dir():
             raise ConfigError("plan file", path, "a path to a file to write")
@@ -115,11 +118,12 @@ class Plan:
 
 
 def read_plan(path: str | Path) -> dict[str, Any]:
-    """Read a plan file and check it whole, as :meth:`PlanFile.read` does (the one check
-    of ``show`` and ``execute``); returns its contents (a dict, as :meth:`Plan.to_dict`).
+    """Read a plan file and check it whole (:meth:`PlanFile.read`, as ``show`` does).
 
     Args:
         path: The plan file (JSON).
+    Returns:
+        Its contents, as :meth:`Plan.to_dict` gives them.
     Raises:
         ConfigError: What :meth:`PlanFile.read` raises.
     """
@@ -154,9 +158,8 @@ class PlanField:
     Attributes:
         key: The key.
         write: Its value in the file of a :class:`Plan` (JSON types).
-        read: Its value checked and typed, from the file's value, its location
-            (``where + key``) and the keys read before it; ``None``: not read (kept in
-            :attr:`PlanFile.contents` only).
+        read: Its value checked and typed, from the file's value, ``where + key`` and the
+            keys read before it; ``None``: kept in :attr:`PlanFile.contents` only.
         required: Whether a file must hold it.
     """
 
@@ -265,8 +268,7 @@ def _write_law(plan: Plan) -> dict[str, Any]:
 
 
 def _read_law(value: Any, where: str, read: dict[str, Any]) -> tuple[HandLaw, float | None]:
-    """The ``hand_law`` table: the law (limits from the robot's model) and the start's
-    palm distance [m] if the file gives one."""
+    """The ``hand_law`` table: the law, the start's palm distance [m] (or ``None``)."""
     table = _table(value, where, "a table with c, b, w, u, mga")
     robot: _Robot = read["robot"]
     law = HandLaw.from_table(
@@ -329,8 +331,7 @@ PLAN_FIELDS: tuple[PlanField, ...] = (
 
 
 def _read_fields(data: dict[str, Any], where: str) -> dict[str, Any]:
-    """Each key of :data:`PLAN_FIELDS` that has a reader, read (``None`` where an optional
-    key is absent), or a ConfigError at ``where + key``."""
+    """The readable keys of :data:`PLAN_FIELDS`, read (optional, absent: ``None``)."""
     read: dict[str, Any] = {}
     for spec in PLAN_FIELDS:
         if spec.read is None:
@@ -346,11 +347,9 @@ def _read_fields(data: dict[str, Any], where: str) -> dict[str, Any]:
 
 @dataclass(frozen=True, eq=False)
 class PlanFile:
-    """A plan as a plan file holds it, typed and checked: robot, law, shapes, path.
-
-    Built from a plan file alone and the URDF it names (:meth:`read`), so that a plan
-    can be replayed or drawn without its scene or robot TOML; or from a :class:`Plan` in
-    memory (:meth:`from_plan`), with the same kinematic model.
+    """A plan as a plan file holds it, typed and checked: robot, law, shapes, path. Read
+    from the file and the URDF it names alone (:meth:`read`: no scene or robot TOML
+    needed to replay or draw it), or made from a :class:`Plan` (:meth:`from_plan`).
 
     Attributes:
         name: A short name for titles (the plan file's stem).
@@ -368,8 +367,7 @@ class PlanFile:
         path: ``(N, nq)`` full configurations.
         obstacles: The scene's obstacles.
         object: The object to grasp, or ``None``.
-        contents: The plan file's contents as read (JSON types): what a physics rollout
-            builds its world from and an execution record keeps.
+        contents: The file's contents as read (JSON types), for physics and execution records.
     """
 
     name: str
@@ -395,6 +393,8 @@ class PlanFile:
 
         Args:
             path: The plan file (JSON).
+        Returns:
+            The plan file, named after the file's stem.
         Raises:
             ConfigError: The file is not a readable ``openup-plan/1`` file, or what
                 :meth:`from_dict` raises, located at ``<file name>: <key>``.
@@ -405,25 +405,23 @@ class PlanFile:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any], name: str = "plan", where: str = "") -> PlanFile:
-        """Check a plan file's contents (as :meth:`Plan.to_dict` gives them) and load
-        its robot's model: the one check of every reader (``show``, ``execute``, the
-        physics rollout, an execution file's ``source``).
+        """Check a plan file's contents (as :meth:`Plan.to_dict` gives them), load its
+        robot's model: the one check of every reader (``show``, ``execute``, physics).
 
         Args:
             data: The contents.
             name: A short name for titles.
             where: Prefix of error locations (e.g. ``"plan.json: "``).
-
+        Returns:
+            The plan file (:attr:`contents` is ``data`` itself).
         Raises:
-            ConfigError: A key is missing or holds a bad value (a robot table naming
-                joints or a frame its URDF lacks, an unloadable URDF, a bad law, shape or
-                grasp pose, a path row of the wrong width, non-finite or beyond a joint
-                limit by more than :data:`LIMIT_TOLERANCE`, a path that does not leave
-                from ``start`` or does not end with the palm at ``grasp_pose``, within
-                :data:`GRASP_POSITION_TOLERANCE` and :data:`GRASP_ROTATION_TOLERANCE`,
-                a row whose hand is not the law's for its arm (:data:`HAND_TOLERANCE`),
-                a ``start_palm_distance`` under :data:`MIN_START_PALM_DISTANCE`),
-                located at ``where + key``.
+            ConfigError: At ``where + key``, a key missing or a bad value: a robot table
+                naming joints or a frame its URDF lacks, an unloadable URDF, a bad law,
+                shape or grasp pose, a path row of the wrong width, non-finite or beyond a
+                limit by over :data:`LIMIT_TOLERANCE`, a path not from ``start`` or not
+                ending at ``grasp_pose`` (:data:`GRASP_POSITION_TOLERANCE`,
+                :data:`GRASP_ROTATION_TOLERANCE`), a hand off the law
+                (:data:`HAND_TOLERANCE`), ``start_palm_distance`` under the minimum.
         """
         if not isinstance(data, dict):
             raise ConfigError(where.rstrip(": .") or "plan", data, "a plan (a JSON object)")
@@ -471,6 +469,8 @@ class PlanFile:
 
         Args:
             plan: A plan; ``name``: a short name for titles.
+        Returns:
+            The plan file, :attr:`contents` as :meth:`Plan.to_dict` gives them.
         """
         robot = plan.problem.robot
         model = _urdf_model(str(robot.urdf))

@@ -44,6 +44,12 @@ MIN_START_DISTANCE = MAX_POSITION_TOLERANCE
 #: start's distance). The checks that certify the fingers' motion near the grasp grow as
 #: its inverse (see the results page on speed).
 MIN_LAW_TRAVEL = 0.0025
+#: A state is checked forward kinematics first (for ``d``, then the collision query) when
+#: the last state checked had ``d <= NEAR_HINT * mga``; else the query goes first, with the
+#: plateau's hand (``StateChecker._check_state``). Chosen on the suites' solves: a
+#: planner's states come in runs near or far from the grasp, and the margin above ``mga``
+#: spares most of the double queries at the runs' starts.
+NEAR_HINT = 2.0
 #: Collision-free arm states remembered, with their ``d``, at most (see
 #: :meth:`StateChecker.is_valid`): a tree's vertex is checked when it is grown and is an
 #: end of the motions checked later.
@@ -122,6 +128,9 @@ class StateChecker:
         self._inv_start = 1.0 / self.goal_distance.start_distance
         self.states_checked = 0
         self._known_valid: dict[bytes, float] = {}
+        # Whether the last state checked lay near the grasp (NEAR_HINT; only a hint).
+        self._near = False
+        self._near_limit = NEAR_HINT * self.law.mga
 
     def normalized_distance(self, arm: np.ndarray) -> float:
         """Normalised palm-to-grasp distance ``d`` (Algorithm 1) of an arm configuration.
@@ -134,7 +143,7 @@ class StateChecker:
         """
         context = self.world.context()
         context.q[self._arm_sel] = arm
-        return self._palm_distance(context.data, context.q)
+        return self._palm_distance(context, context.q)
 
     def _palm_point(self, arm: np.ndarray) -> list[float]:
         """The palm's position [m, world frame] at an arm configuration."""
@@ -172,17 +181,22 @@ class StateChecker:
         if law.fixed_clipped is not None:
             q[self._hand_sel] = law.fixed_clipped
             return math.inf
-        d = self._palm_distance(context.data, q)
-        if d > law.mga:
-            q[self._hand_sel] = law.high
-        else:
-            hand = context.hand
-            np.multiply(law.low_slope, d, out=hand)
-            np.add(hand, law.arrival, out=hand)
-            if law.clip_low:
-                np.clip(hand, law.lower, law.upper, out=hand)
-            q[self._hand_sel] = hand
+        d = self._palm_distance(context, q)
+        self._set_hand(context, d)
         return d
+
+    def _set_hand(self, context: ThreadContext, d: float) -> None:
+        """Write the law's hand at ``d`` into ``context.q``."""
+        law = self.law
+        if d > law.mga:
+            context.q[self._hand_sel] = law.high
+            return
+        hand = context.hand
+        np.multiply(law.low_slope, d, out=hand)
+        np.add(hand, law.arrival, out=hand)
+        if law.clip_low:
+            np.clip(hand, law.lower, law.upper, out=hand)
+        context.q[self._hand_sel] = hand
 
     def is_valid(self, arm: object) -> bool:
         """Whether the arm configuration, hand set by the law, is collision-free (with
@@ -201,7 +215,19 @@ class StateChecker:
         return self._check_state(arm)[0]
 
     def _check_state(self, arm: object) -> tuple[bool, float]:
-        """:meth:`is_valid`, and ``d`` there (``inf`` for a fixed hand)."""
+        """:meth:`is_valid`, and ``d`` there (``inf`` for a fixed hand).
+
+        ``d`` needs the palm's placement, and the collision query computes forward
+        kinematics anyway. Away from the grasp (the hand on the law's plateau, as at
+        almost every state a planner samples) the state is queried with the plateau hand
+        first and ``d`` read from the placements the query left: the coupled check then
+        costs one forward kinematics, as a fixed hand's does. Where ``d <= mga`` the hand
+        was wrong: it is set from ``d`` and the state queried again. When the last state
+        checked had ``d <= NEAR_HINT * mga`` (:data:`NEAR_HINT`), the planner is likely
+        near the grasp: forward kinematics for ``d`` go first, then the one query. Either
+        way the verdict is the query of the state with the law's hand (a query does not
+        depend on the ones before it: no GJK warm start).
+        """
         key = arm.tobytes() if type(arm) is np.ndarray and arm.dtype == np.float64 else None
         if key is not None:
             d = self._known_valid.get(key)
@@ -209,10 +235,29 @@ class StateChecker:
                 return True, d
         self.states_checked += 1
         context = self.finest_world.context()
-        d = self._fill(context, arm)
-        free = not pin.computeCollisions(
-            self._model, context.data, context.manager, context.q, True
-        )
+        model, data, manager, q = self._model, context.data, context.manager, context.q
+        law = self.law
+        collides = None
+        if law.fixed_clipped is not None or self._near:  # forward kinematics for d first
+            d = self._fill(context, arm)
+            self._near = d <= self._near_limit
+        else:  # the plateau's hand first, d from the placements the query leaves
+            q[self._arm_sel] = arm
+            q[self._hand_sel] = law.high
+            collides = pin.computeCollisions(model, data, manager, q, True)
+            palm = context.palm
+            if palm is not None and self._translation_only:  # _placed_distance, inlined
+                pin.updateFramePlacement(model, data, self._palm)
+                d = math.dist(palm.tolist(), self._goal) * self._inv_start
+            else:
+                d = self._placed_distance(context)
+            self._near = d <= self._near_limit
+            if d <= law.mga:
+                self._set_hand(context, d)
+                collides = None
+        if collides is None:
+            collides = pin.computeCollisions(model, data, manager, q, True)
+        free = not collides
         if free and key is not None:
             if len(self._known_valid) >= KNOWN_VALID_MAX:
                 self._known_valid.clear()
@@ -257,12 +302,20 @@ class StateChecker:
         qs[self._arm_sel, :] = arms.T
         return qs
 
-    def _palm_distance(self, data: pin.Data, q: np.ndarray) -> float:
-        pin.forwardKinematics(self._model, data, q)
-        placement = pin.updateFramePlacement(self._model, data, self._palm)
-        if self._translation_only:
-            return math.dist(placement.translation.tolist(), self._goal) * self._inv_start
-        return self.goal_distance(placement)
+    def _palm_distance(self, context: ThreadContext, q: np.ndarray) -> float:
+        """``d`` at the full configuration ``q`` (forward kinematics in ``context``)."""
+        pin.forwardKinematics(self._model, context.data, q)
+        return self._placed_distance(context)
+
+    def _placed_distance(self, context: ThreadContext) -> float:
+        """``d`` from the joint placements in ``context.data`` (the last forward
+        kinematics there)."""
+        placement = pin.updateFramePlacement(self._model, context.data, self._palm)
+        if not self._translation_only:
+            return self.goal_distance(placement)
+        palm = context.palm
+        point = placement.translation.tolist() if palm is None else palm.tolist()
+        return math.dist(point, self._goal) * self._inv_start
 
     def _law_distances(
         self, qs: np.ndarray, path: np.ndarray, ends: tuple[float, float] | None = None
@@ -280,12 +333,12 @@ class StateChecker:
         grasp this costs the two ends; near it, one forward kinematics per state.
         """
         n = qs.shape[1]
-        data = self.world.context().data
+        context = self.world.context()
         distance = self._palm_distance
         mga = self.law.mga
         if ends is None:
-            first = distance(data, qs[:, 0])
-            ends = (first, distance(data, qs[:, -1]) if n > 1 else first)
+            first = distance(context, qs[:, 0])
+            ends = (first, distance(context, qs[:, -1]) if n > 1 else first)
         if n <= ANCHOR_STRIDE + 2:
             # A motion's few states: plain Python is faster than numpy's calls.
             d0, d1 = ends
@@ -294,7 +347,7 @@ class StateChecker:
             out = [d0]
             for k in range(1, n - 1):
                 low = max(d0 - steps[k], d1 - (total - steps[k]))
-                out.append(distance(data, qs[:, k]) if low <= mga else low)
+                out.append(distance(context, qs[:, k]) if low <= mga else low)
             if n > 1:
                 out.append(d1)
             return np.array(out)
@@ -306,7 +359,7 @@ class StateChecker:
         if need.size > ANCHOR_STRIDE:
             anchors = need[::ANCHOR_STRIDE]
             for k in anchors.tolist():
-                d[k] = distance(data, qs[:, k])
+                d[k] = distance(context, qs[:, k])
             known = np.concatenate([[0], anchors, [n - 1]])
             rest = need[np.arange(need.size) % ANCHOR_STRIDE != 0]
             right = np.searchsorted(known, rest)
@@ -317,7 +370,7 @@ class StateChecker:
             d[rest] = bound
             need = rest[bound <= mga]
         for k in need.tolist():
-            d[k] = distance(data, qs[:, k])
+            d[k] = distance(context, qs[:, k])
         return d
 
     def _states(

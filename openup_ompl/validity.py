@@ -1,10 +1,10 @@
 """Coupled validity: every arm state is checked with the hand set by the hand law.
 
 The arm joints are OMPL's state space; the fingers follow. Three units make the check:
-single states (:mod:`openup_ompl.state_check`: forward kinematics, the normalised
-distance ``d`` to the grasp pose of Algorithm 1, the hand from Algorithm 3, Coal), the
-certified-resolution bound of a motion (:mod:`openup_ompl.resolution_bound`), and here the
-motion check that places a motion's states by that bound, with the OMPL classes over them.
+single states (:mod:`openup_ompl.state_check`: forward kinematics, the normalised distance
+``d`` to the grasp pose of Algorithm 1, the hand from Algorithm 3, Coal), a motion's
+certified-resolution bound (:mod:`openup_ompl.resolution_bound`), and here the motion check
+that places states by that bound, with the OMPL classes over it.
 """
 
 from __future__ import annotations
@@ -62,11 +62,10 @@ __all__ = [
     "CoupledValidityChecker",
 ]
 
-#: A motion's displacement bound is tightened from its two ends' placements
-#: (:func:`~openup_ompl.motion_bound.local_reach`) when the global weights' bound spans
-#: more than this many of the first round's intervals, or when the first round leaves
-#: intervals that need at least ``LOCAL_REACH_MIN_STATES`` more states: below these,
-#: reading the placements costs more than the states it would spare.
+#: Past this many first-round intervals of the global weights' bound, or ``LOCAL_REACH_MIN_STATES``
+#: states more after the first round, a motion's bound is tightened from its ends' placements
+#: (:func:`~openup_ompl.motion_bound.local_reach`); below, reading them costs more than the states
+#: it spares.
 LOCAL_REACH_MIN_INTERVALS = 8
 LOCAL_REACH_MIN_STATES = 8
 #: A motion whose first round has at least this many states (a long one: most are a path
@@ -115,21 +114,18 @@ class CoupledChecker(StateChecker):
         world: A collision world to reuse (built from ``problem`` if omitted).
         resolution: Motion-check resolution [m] (see :data:`DEFAULT_RESOLUTION`), in
             ``[RESOLUTION_MIN, RESOLUTION_MAX]``.
-        padding: Margin [m] added around obstacles and object, and between the robot's
-            own links (a pair's margin is up to twice it: see
-            :func:`~openup_ompl.collision.self_margins`); ``None`` gives
-            ``resolution / 2``, the margin that makes motion checks exact. Where a state
-            lacks that margin, halved margins (:data:`REFINE_LEVELS`) are tried and the
-            motion around it is cut finer; ``0`` turns the guarantee off.
-        coarse_levels: Doublings of the padding and of the spacing of the first pass
-            over a motion (:data:`COARSE_LEVELS`); ``0`` checks every motion at
-            ``resolution`` directly.
+        padding: Margin [m] added around obstacles and object, and between the robot's own
+            links (a pair's is up to twice it: :func:`~openup_ompl.collision.self_margins`);
+            ``None`` gives ``resolution / 2``, which makes motion checks exact. A state
+            lacking it tries halved margins (:data:`REFINE_LEVELS`), the motion around it
+            cut finer; ``0`` turns the guarantee off.
+        coarse_levels: Doublings of the padding and of the first pass's spacing
+            (:data:`COARSE_LEVELS`); ``0`` checks every motion at ``resolution`` directly.
 
     Raises:
         ConfigError: A bad resolution, padding or number of coarse levels.
-        InvalidProblem: A start too close to the grasp for the law
-            (:data:`MIN_START_DISTANCE`, :data:`MIN_LAW_TRAVEL`), refused before any
-            check is built on that distance.
+        InvalidProblem: A start too close to the grasp for the law (:data:`MIN_START_DISTANCE`,
+            :data:`MIN_LAW_TRAVEL`), before any check uses it.
 
     Attributes:
         paddings: The margins [m] of the levels, widest first: the coarse pass's
@@ -140,13 +136,11 @@ class CoupledChecker(StateChecker):
         states_checked: States checked so far (single and batched; a free state
             :meth:`is_valid` remembers is not checked, nor counted, again).
         motions_checked: Motions checked so far.
-        certified: Motions :meth:`check_motion` accepted, as ``(a, b)`` byte keys, so that
-            a path made of them need not be checked again (:meth:`is_certified`); kept up
-            to :data:`CERTIFIED_MAX` motions, then restarted.
+        certified: Motions :meth:`check_motion` accepted, as ``(a, b)`` byte keys for
+            :meth:`is_certified`; up to :data:`CERTIFIED_MAX`, then restarted.
         motion_weights: Weights ``W`` [m per joint unit] of the displacement bound
             (:mod:`~openup_ompl.motion_bound`), the fingers' motion under the law included.
-        plateau_weights: The same with the hand still, for motions that stay on the law's
-            plateau (:meth:`weights`).
+        plateau_weights: The same with the hand still (motions on the plateau, :meth:`weights`).
         distance_rates: How fast ``d`` may change per joint unit.
     """
 
@@ -178,16 +172,15 @@ class CoupledChecker(StateChecker):
     def weights(
         self, a: np.ndarray, b: np.ndarray, ends: tuple[float, float] | None = None
     ) -> np.ndarray:
-        """Weights [m/rad] ``(dof,)`` of the displacement bound for the motion ``a -> b``:
-        without the fingers' term where ``d`` provably stays above ``mga`` all along (the hand
-        is then on the law's plateau and does not move), else :attr:`motion_weights`.
-
-        Along the motion ``d >= (d(a) + d(b) - rates . |b - a|) / 2``, from the Lipschitz
-        bound of ``d`` (:attr:`distance_rates`) at both ends.
+        """The displacement bound's weights for the motion ``a -> b``: without the fingers'
+        term where ``d`` provably stays above ``mga`` all along (the hand on the plateau,
+        still), from ``d >= (d(a) + d(b) - rates . |b - a|) / 2`` (:attr:`distance_rates`).
 
         Args:
             a, b: Arm configurations [rad], shape ``(dof,)``.
             ends: ``(d(a), d(b))`` [unitless] when known; computed otherwise.
+        Returns:
+            :attr:`plateau_weights` or :attr:`motion_weights` [m/rad], shape ``(dof,)``.
         """
         if self.law.fixed is not None:
             return self.motion_weights
@@ -204,11 +197,9 @@ class CoupledChecker(StateChecker):
     def _motion_spread(
         self, a: np.ndarray, b: np.ndarray, abs_delta: np.ndarray, spread: float | None = None
     ) -> float:
-        """How much ``d`` can change per unit of ``t`` along the motion ``a -> b`` with
-        ``abs_delta = |b - a|``: at most ``spread``, the global bound
-        :attr:`distance_rates` ``@ abs_delta`` (computed if not given), tightened from the
-        palm's positions at the ends
-        (:meth:`~openup_ompl.resolution_bound.ResolutionBound.local_spread`)."""
+        """How much ``d`` can change per unit of ``t`` along ``a -> b`` (``abs_delta = |b - a|``):
+        at most ``spread`` (:attr:`distance_rates` ``@ abs_delta`` if not given), tightened from the
+        palm's ends (:meth:`~openup_ompl.resolution_bound.ResolutionBound.local_spread`)."""
         if spread is None:
             spread = float(self.distance_rates @ abs_delta)
         if self.bound.local_terms is None:
@@ -218,9 +209,9 @@ class CoupledChecker(StateChecker):
     def _local_reach(
         self, a: np.ndarray, b: np.ndarray, curvature: np.ndarray, arm: float
     ) -> float:
-        """The arm's share of the bound of ``a -> b`` tightened from its two ends'
-        placements (:meth:`~openup_ompl.resolution_bound.ResolutionBound.tightened_arm`);
-        computed in the finest world's context (whose next check recomputes it)."""
+        """The arm's share of the bound of ``a -> b`` tightened from its ends' placements
+        (:meth:`~openup_ompl.resolution_bound.ResolutionBound.tightened_arm`), in the finest
+        context."""
         ids = self.bound.arm_joint_ids
         context = self.finest_world.context()
         q, data, model = context.q, context.data, self._model
@@ -246,6 +237,8 @@ class CoupledChecker(StateChecker):
             a, b: Arm configurations [rad], shape ``(dof,)``.
             resolution: Largest move of a robot point per step [m]; default :attr:`resolution`.
             weights: Per-joint weights [m/rad]; default :attr:`motion_weights`.
+        Returns:
+            The number of steps.
         """
         step = self.resolution if resolution is None else resolution
         w = self.motion_weights if weights is None else weights
@@ -258,21 +251,24 @@ class CoupledChecker(StateChecker):
         resolution: float | None = None,
         weights: np.ndarray | None = None,
     ) -> np.ndarray:
-        """Arm states [rad] along ``a -> b``, excluding ``a``, including ``b``, shape
-        ``(n, dof)``: no robot point moves more than ``resolution`` between two.
+        """Arm states along ``a -> b``: no robot point moves more than ``resolution`` between two.
 
         Args:
             a, b, resolution, weights: As for :meth:`segment_count`.
+        Returns:
+            ``(n, dof)`` arm states [rad], ``a`` excluded, ``b`` last.
         """
         n = self.segment_count(a, b, resolution, weights)
         t = np.arange(1, n + 1, dtype=float)[:, None] / n
         return a + t * (b - a)
 
     def coupled_qs(self, arms: np.ndarray) -> np.ndarray:
-        """Full configurations, one per column ``(nq, n)``, the hand set by the law.
+        """Full configurations of arm states, the hand set by the law.
 
         Args:
             arms: Arm configurations [rad], shape ``(n, dof)`` (or ``(dof,)``).
+        Returns:
+            ``(nq, n)`` configurations (joint units), one per column.
         """
         arms = np.atleast_2d(arms)
         qs = self._arm_qs(arms)
@@ -323,32 +319,29 @@ class CoupledChecker(StateChecker):
 
     # -- motions ----------------------------------------------------------------------
     def check_motion(self, a: np.ndarray, b: np.ndarray) -> bool:
-        """Whether the straight arm motion ``a -> b`` is collision-free with the coupled hand.
+        """Check the straight arm motion ``a -> b`` with the coupled hand.
 
-        ``b`` is checked first (the finest margin). Then states of the motion are placed where they
-        are needed, each with the widest of the margins :attr:`paddings` it keeps: a point of the
-        robot that moves no more than ``m_i + m_j`` between two checked states of margins ``m_i``
-        and ``m_j`` stays within one margin of one of them, so the interval between them is
-        collision-free. The first round places states :attr:`coarse_resolution` apart against the
-        widest margin: a motion far from every obstacle is settled by them. Each further round cuts
-        the intervals still uncovered at the spacing their thinner end's margin covers, and checks
-        the new states from that margin on; a state that collides even with the finest margin
-        refuses the motion. Each round's states of one margin go to Coal in one batch
-        (:meth:`~openup_ompl.collision.CollisionWorld.batch_in_collision`). A long motion's first
-        round (:data:`PROBE_MIN_STATES` states or more) is probed first: one state in
-        :data:`PROBE_STRIDE` against the finest margin, up to the first that collides, which refuses
-        it as its full round would.
+        ``b`` is checked first (the finest margin). Then states are placed where needed, each with
+        the widest margin of :attr:`paddings` it keeps: a robot point that moves no more than ``m_i
+        + m_j`` between checked states of margins ``m_i`` and ``m_j`` stays within one margin of one
+        of them, so the interval between them is free. The first round places states
+        :attr:`coarse_resolution` apart against the widest margin (settling a motion far from every
+        obstacle); each further round cuts the intervals still uncovered at the spacing their
+        thinner end's margin covers and checks the new states from that margin on; a state colliding
+        even with the finest margin refuses the motion. A round's states of one margin go to Coal in
+        one batch. A long first round (:data:`PROBE_MIN_STATES` states) is probed first: one state
+        in :data:`PROBE_STRIDE` against the finest margin, up to the first that collides.
 
-        The displacement bound is the arm's share plus the fingers'. The arm's is the global
-        weights' (:attr:`plateau_weights`), or, once the motion needs more than the first round or
-        is long, the smaller bound from its two ends' placements
-        (:func:`~openup_ompl.motion_bound.local_reach`). The fingers' is counted only over the
-        intervals where ``d`` may reach ``mga`` (from the lower bounds of ``d`` at their two states
-        and how fast ``d`` changes along the motion): elsewhere the hand is on the law's plateau and
-        still.
+        The displacement bound is the arm's share (:attr:`plateau_weights`' bound, or, past the
+        first round or for a long motion, the smaller one from its ends' placements:
+        :func:`~openup_ompl.motion_bound.local_reach`) plus the fingers', counted only over
+        intervals where ``d`` may reach ``mga`` (from the lower bounds of ``d`` at their ends
+        and how fast ``d`` changes): elsewhere the hand is on the law's plateau, still.
 
         Args:
             a, b: Arm configurations [rad], shape ``(dof,)``; ``a`` is assumed valid.
+        Returns:
+            ``True`` when the motion is free (then :attr:`certified`).
         """
         self.motions_checked += 1
         free, db = self._check_state(b)
@@ -385,10 +378,9 @@ class CoupledChecker(StateChecker):
         levels: np.ndarray,
         low: np.ndarray | None,
     ) -> bool:
-        """Cut the intervals of the checked states at ``t`` (of margin indices ``levels``,
-        lower bounds of ``d`` ``low``) that the bound leaves uncovered, round after round,
-        until every interval is covered (``True``) or a state collides with the finest
-        margin (``False``)."""
+        """Cut the uncovered intervals of the checked states at ``t`` (margin indices ``levels``,
+        lower bounds of ``d`` ``low``), round after round, until all are covered (``True``) or a
+        state collides with the finest margin (``False``)."""
         pads, mga = self._pads, self.law.mga
         while True:
             margin = pads[levels]
@@ -430,9 +422,8 @@ class CoupledChecker(StateChecker):
                 low = np.concatenate([low, new_low])[order]
 
     def forget(self) -> None:
-        """Forget the free states :meth:`is_valid` remembers and the motions
-        :attr:`certified` holds: the next checks of them are done again (to time cold
-        checks, or after the checker's scene was changed in place)."""
+        """Forget the free states :meth:`is_valid` remembers and :attr:`certified`: their next
+        checks are done again (to time cold checks, or after the scene changed in place)."""
         self._known_valid.clear()
         self.certified.clear()
 
@@ -447,19 +438,18 @@ class CoupledChecker(StateChecker):
 
         Args:
             a, b: Arm configurations [rad], shape ``(dof,)``.
+        Returns:
+            ``True`` when it was accepted.
         """
-
         a = np.ascontiguousarray(a, dtype=float)
         b = np.ascontiguousarray(b, dtype=float)
         keys = self.certified
         return a.tobytes() + b.tobytes() in keys or b.tobytes() + a.tobytes() in keys
 
     def _probe_collides(self, qs: np.ndarray) -> bool:
-        """Whether one of every :data:`PROBE_STRIDE` columns of ``qs`` (a long motion's
-        first round) collides with the finest margin, checked one by one up to the first
-        that does. Such a state refuses the motion as :meth:`_margins` would (it collides
-        with every wider margin too), so the verdict is the same; a refused motion then
-        costs a few states instead of its whole first round."""
+        """Whether one of every :data:`PROBE_STRIDE` columns of ``qs`` (a long first round)
+        collides with the finest margin: it refuses the motion as :meth:`_margins` would (it
+        collides with every wider margin too), for a few states instead of the whole round."""
         probe = np.asfortranarray(qs[:, PROBE_STRIDE // 2 :: PROBE_STRIDE])
         self.states_checked += probe.shape[1]
         return bool(np.any(self.finest_world.batch_in_collision(probe)))
@@ -479,6 +469,11 @@ class CoupledValidityChecker(ob.StateValidityChecker):
         self._n = checker.robot.arm_idx.size
 
     def isValid(self, state: ob.State) -> bool:  # noqa: N802 - OMPL's name
+        """OMPL's state check: :meth:`~openup_ompl.state_check.StateChecker.is_valid` of the arm.
+
+        Returns:
+            Whether it is collision-free, the hand set by the law.
+        """
         return self.checker.is_valid(state[0 : self._n])
 
 
@@ -496,5 +491,10 @@ class CoupledMotionValidator(ob.MotionValidator):
         self._n = checker.robot.arm_idx.size
 
     def checkMotion(self, s1: ob.State, s2: ob.State) -> bool:  # noqa: N802 - OMPL's name
+        """OMPL's motion check: :meth:`CoupledChecker.check_motion` of the arm states.
+
+        Returns:
+            Whether the motion ``s1 -> s2`` is collision-free with the coupled hand.
+        """
         n = self._n
         return self.checker.check_motion(np.array(s1[0:n]), np.array(s2[0:n]))

@@ -141,6 +141,28 @@ def record_all(specs: list[tuple[str, int, list[list[float]]]] = CASES, path: Pa
     path.write_text(json.dumps({"cases": cases}, indent=1) + "\n")
 
 
+def replay(seed: int, cases: dict[str, list[int]]) -> dict[str, Any]:
+    """An executor task (``physics_regression:replay``): each of the throughput set's
+    ``cases`` (its index, as a string: JSON keys) run at its trials (indices into its
+    offsets) with the sweep's settings (``PhysicsOptions(early_end=True)``), the object's
+    jitter seeded by ``seed``.
+
+    Returns:
+        ``{"records"}``: each trial's execution record without frames, in order.
+    """
+    from openup_ompl.physics import PhysicsOptions, Rollout
+
+    stored = load(TRIALS)
+    records = []
+    for index, trials in cases.items():
+        case = stored[int(index)]
+        rollout = Rollout(plan_contents(case), PhysicsOptions(early_end=True))
+        for i in trials:
+            record = rollout.run(case["trials"][i]["offset"], seed=seed, frames=False)
+            records.append(record.to_dict(frames=False))
+    return {"records": records}
+
+
 if __name__ == "__main__":
     if sys.argv[1:] == ["--trials"]:
         record_all(TRIAL_CASES, TRIALS)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import importlib.util
 import sys
 from pathlib import Path
-from types import ModuleType
+from types import ModuleType, SimpleNamespace
 
 import numpy as np
 import pytest
@@ -70,3 +70,42 @@ def test_main_skips_an_absent_peer_in_one_line(
     assert "pyroboplan is not installed" in err
     assert "pyroboplan did not run" in out
     assert "recheck: 2/2 plans pass" in out
+
+
+def test_summary_names_every_problem_under_the_per_problem_target(
+    bench_peers: ModuleType,
+) -> None:
+    """A geometric mean over 50x does not hide a problem under 10x: it is named, the
+    least ratio reported, and the target not met."""
+    problems = [SimpleNamespace(name=name) for name in ("a", "b", "c")]
+    peer = {"a": 8.0, "b": 0.6, "c": 9.0}  # pyroboplan's seconds; ours take 0.01 s
+    runs = [
+        {"problem": name, "variant": variant, "solved": True, "time_s": t, "wall_s": t}
+        for name in peer
+        for variant, t in (("ikbirrt", 0.01), ("pyroboplan", peer[name]))
+    ]
+    summary = bench_peers.summarize(problems, runs, ("ikbirrt", "pyroboplan"))
+    assert summary["geomean"]["pyroboplan/ikbirrt"] >= bench_peers.TARGET
+    assert summary["below_scene_target"] == []
+    assert summary["target_met"]
+    peer["b"] = 0.05  # 5x
+    runs = [
+        r if r["variant"] != "pyroboplan" else {**r, "time_s": peer[r["problem"]]} for r in runs
+    ]
+    summary = bench_peers.summarize(problems, runs, ("ikbirrt", "pyroboplan"))
+    assert summary["below_scene_target"] == ["b"]
+    assert summary["least_ratio"] == {"problem": "b", "pyroboplan/ikbirrt": pytest.approx(5.0)}
+    assert not summary["target_met"]
+    report = bench_peers.report(
+        {"summary": summary, "steps_rad": {"b": 0.01}, "recheck": (3, 3)},
+        bench_peers._common.machine_info(),
+        {
+            "variants": ["ikbirrt", "pyroboplan"],
+            "seeds": [1],
+            "time": 1.0,
+            "range": 0.4,
+            "peer_range": 2.0,
+            "ompl_seed": 1,
+        },
+    )
+    assert "under 10×: b" in report and "5.0× on b" in report

@@ -130,3 +130,19 @@ def test_bench_revalidate_prints_a_row_per_robot(tmp_path: Path) -> None:
     assert len(rows) == len(oo.available_robots())
     scenes = json.loads(out.read_text())["scenes"]
     assert all(s["states"][0] > 1 and len(s["execute_s"]) == 1 for s in scenes.values())
+
+
+def test_bench_coupling_checks_every_robot(tmp_path: Path) -> None:
+    """Every robot, both state sets, every variant timed; the script fails on any verdict
+    that differs from its pair-loop reference."""
+    out = tmp_path / "coupling.json"
+    done = _run("bench_coupling.py", "--states", "40", "--rounds", "2", "--json", str(out))
+    assert done.returncode == 0, done.stderr[-2000:]
+    result = json.loads(out.read_text())
+    assert set(result["robots"]) == {"panda", "lwa3_sdh", "ur5_allegro"}
+    for entry in result["robots"].values():
+        near = entry["sets"]["near the grasp"]
+        assert near["on_plateau_fraction"] == 0.0  # every state there moves the fingers
+        for state_set in entry["sets"].values():
+            assert state_set["states"] == 40
+            assert all(t > 0 for t in state_set["median_s_per_state"].values())

@@ -18,6 +18,7 @@ from openup_ompl.perception import (
     CameraOptions,
     DepthCamera,
     NoiseOptions,
+    arrival_fraction,
     clearance_per_u,
     estimated_pose,
     fit_superquadric,
@@ -191,6 +192,37 @@ def test_clearance_per_u_from_the_robot_geometry(lwa3_can: ou.Problem) -> None:
     panda = ou.load_scene(ou.default_scene_path())
     assert clearance_per_u(panda) == pytest.approx(0.003, abs=1e-6)
     assert 0.01 < clearance_per_u(lwa3_can) < 0.1
+
+
+def test_arrival_fraction_is_the_law_s_opening_left_at_the_object(lwa3_can: ou.Problem) -> None:
+    """The share of the extra opening left when the fingertips reach the object shrinks by
+    delta / (D0 mga) when the object moves delta away along the approach; 1 for a law that
+    arrives open; the arrival-aware u divides the clearance by it."""
+    import dataclasses
+
+    share = arrival_fraction(lwa3_can)
+    assert 0.0 < share < 1.0
+    law = lwa3_can.hand_law
+    grasp = lwa3_can.grasp
+    approach = grasp.rotation @ np.asarray(lwa3_can.robot.spec.approach, dtype=float)
+    assert lwa3_can.object is not None
+    pose = np.array(lwa3_can.object.pose, dtype=float)
+    pose[:3] += 0.005 * approach / np.linalg.norm(approach)
+    moved = dataclasses.replace(lwa3_can, object=dataclasses.replace(lwa3_can.object, pose=pose))
+    robot = lwa3_can.robot
+    start = robot.palm_placement(robot.model.createData(), robot.full_q(lwa3_can.start, law(1.0)))
+    d0 = float(np.linalg.norm(start.translation - grasp.translation))
+    assert law.distance == "translation"  # D0 is the palm's distance alone
+    assert arrival_fraction(moved) == pytest.approx(share - 0.005 / (d0 * law.mga), abs=1e-9)
+    opened = dataclasses.replace(lwa3_can, hand_law=law.with_options(open_arrival=True))
+    assert arrival_fraction(opened) == 1.0
+    covariance = np.eye(3) * 0.002**2
+    plain = u_from_covariance(covariance, np.zeros((3, 3)), lwa3_can)
+    assert 0.0 < plain < share  # small enough that neither is clipped at 1
+    at_arrival = u_from_covariance(covariance, np.zeros((3, 3)), lwa3_can, at_arrival=True)
+    assert at_arrival == pytest.approx(plain / share)
+    with pytest.raises(ConfigError, match="at_arrival"):
+        u_from_covariance(covariance, np.zeros((3, 3)), lwa3_can, at_arrival="yes")  # type: ignore[arg-type]
 
 
 def test_camera_looking_away_sees_no_object(lwa3_can: ou.Problem) -> None:

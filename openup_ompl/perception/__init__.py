@@ -19,6 +19,7 @@ from openup_ompl.perception.perceive import (
 from openup_ompl.perception.superquadric import Superquadric
 from openup_ompl.perception.uncertainty import (
     COVERAGE,
+    arrival_fraction,
     clearance_per_u,
     lateral_sigma,
     u_from_covariance,
@@ -37,6 +38,7 @@ __all__ = [
     "Silhouette",
     "Superquadric",
     "SuperquadricFit",
+    "arrival_fraction",
     "at_estimate",
     "clearance_per_u",
     "estimated_pose",

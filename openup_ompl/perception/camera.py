@@ -1,10 +1,9 @@
 """A simulated pinhole depth camera that ray-casts the scene with MuJoCo.
 
-The camera frame follows OpenCV: ``z`` forward along the optical axis, ``x`` right, ``y``
-down. One ray per pixel centre is cast with ``mujoco.mj_multiRay`` against the scene's
-MuJoCo model (:func:`~openup_ompl.physics.shapes.scene_spec`); each ray returns its hit
-distance, geom id and surface normal. The noise model is applied separately
-(:mod:`~openup_ompl.perception.noise`) so that one ray cast serves many noisy views.
+The camera frame follows OpenCV (``z`` forward, ``x`` right, ``y`` down). One ray per pixel
+centre is cast with ``mujoco.mj_multiRay`` against the scene's MuJoCo model
+(:func:`~openup_ompl.physics.shapes.scene_spec`): hit distance, geom and normal. The noise
+(:mod:`~openup_ompl.perception.noise`) is applied apart: one cast serves many noisy views.
 """
 
 from __future__ import annotations
@@ -55,10 +54,9 @@ PRINCIPAL_MAX = 1e5
 class CameraOptions:
     """Pose, intrinsics and resolution of the depth camera.
 
-    The pose is either explicit (``position`` and ``target``) or, by default, set from the
-    object: the camera stands ``distance`` from the object's centre, on the side of the
-    robot's base (the world origin) or at ``azimuth``, raised by ``elevation``; it looks at
-    the object's centre. Without ``fx`` the focal length follows from ``fov``.
+    The pose is explicit (``position``, ``target``) or, by default, from the object:
+    ``distance`` from its centre, towards the robot's base (world origin) or at ``azimuth``,
+    raised by ``elevation``, looking at the centre. ``fov`` sets the focal length if no ``fx``.
 
     Attributes:
         width: Image width [px].
@@ -70,8 +68,7 @@ class CameraOptions:
         cy: Principal point y [px] (None: the image centre).
         distance: Camera to object centre [m] (default pose only).
         elevation: Angle [deg] of the line of sight above the horizontal (default pose).
-        azimuth: Direction [deg] from the object to the camera about world z (None: towards
-            the robot's base at the world origin).
+        azimuth: Direction [deg] from the object to the camera about world z (None: the base's).
         position: Explicit camera position ``[x, y, z]`` [m] in the world frame.
         target: Explicit point [m] the optical axis passes through (None: object centre).
         max_range: Rays longer than this [m] return nothing (the sensor's far limit).
@@ -146,13 +143,11 @@ class CameraOptions:
 
     @classmethod
     def from_table(cls, table: Mapping[str, Any], where: str = "camera") -> CameraOptions:
-        """Options from a scene's ``[camera]`` table or ``--camera KEY=VALUE`` pairs (the
-        keys are the attribute names).
+        """Options from a ``[camera]`` table or ``--camera KEY=VALUE`` pairs (attribute names).
 
         Args:
             table: Key -> value (``width``, ``height``, ``fov``, ``distance``, ...).
             where: Prefix of error locations.
-
         Returns:
             The options, checked.
         """
@@ -194,7 +189,6 @@ class CameraOptions:
 
         Args:
             problem: The scene (its object, robot base and grasp).
-
         Returns:
             ``(position, target)``, each ``(3,)`` [m].
         """
@@ -250,6 +244,8 @@ def camera_of_scene(problem: Problem, overrides: Mapping[str, Any] | None = None
     Args:
         problem: The scene (read again from its file, if it has one).
         overrides: ``[camera]`` keys and values (distances [m], angles [deg]), or ``None``.
+    Returns:
+        The camera's options, checked.
     Raises:
         ConfigError: A ``[camera]`` that is not a table, or a bad key or value.
     """
@@ -383,7 +379,11 @@ class DepthCamera:
 
     def looking_from(self, options: CameraOptions) -> DepthCamera:
         """The same scene (its compiled model shared) seen through other ``options`` of
-        the same intrinsics and resolution: many candidate views without recompiling."""
+        the same intrinsics and resolution: many candidate views without recompiling.
+
+        Returns:
+            A camera at ``options``' pose (a new one, compiled again, if they differ).
+        """
         if (options.width, options.height, options.intrinsics()) != (
             self.options.width,
             self.options.height,
@@ -438,18 +438,16 @@ class DepthCamera:
 
     def support_under(self, points: np.ndarray, view: DepthView | None = None) -> float | None:
         """Height [m] of the surface the object stands on, from its measured ``points``:
-        rays cast straight down from their top, past the object, at their centre and at
-        their four extremes in x and y, all hit it (within :data:`SUPPORT_TOLERANCE` of
-        each other: a flat surface under the whole visible footprint, not an edge under
-        part of it). ``None`` when a ray hits nothing, the rays disagree, the surface is
-        not within :data:`SUPPORT_TOLERANCE` above and :data:`SUPPORT_GAP` below the
-        points' lowest, or the ``view`` sees a gap under the object in most of its image
-        columns (:func:`gap_under`: held above the surface, or on a stand the rays miss).
+        rays cast straight down past the object from their top, at their centre and four x
+        and y extremes, all hit it within :data:`SUPPORT_TOLERANCE` of each other (a flat
+        surface under the whole visible footprint). ``None`` when they do not, the surface
+        is not within :data:`SUPPORT_TOLERANCE` above and :data:`SUPPORT_GAP` below the
+        points' lowest, or the ``view`` sees a gap under the object in most image columns
+        (:func:`gap_under`: held above it, or on a stand the rays miss).
 
         Args:
             points: The object's measured points ``(n, 3)`` [m], world frame.
             view: The view they came from (for the gap test); ``None`` skips it.
-
         Returns:
             The surface's height [m], or ``None``.
         """
@@ -481,11 +479,14 @@ class DepthCamera:
 
 
 def gap_under(view: DepthView) -> float:
-    """The share of the object's image columns in which the pixel just below its lowest
-    object pixel sees a surface more than :data:`GAP_DEPTH` deeper than that pixel: space
-    seen under the object (0 for an object standing on the table, whose base meets the
-    nearer table in front of it; columns whose next pixel is off the image, unmeasured or
-    nearer, such as a wall in front, say nothing)."""
+    """The share of the object's image columns where the pixel just below its lowest object
+    pixel sees a surface over :data:`GAP_DEPTH` deeper: space seen under the object (0 for
+    an object on the table, whose base meets the nearer table in front; columns whose next
+    pixel is off the image, unmeasured or nearer, such as a wall in front, say nothing).
+
+    Returns:
+        The share, in ``[0, 1]`` (0 when no pixel sees the object).
+    """
     on_object = view.on_object.reshape(view.height, view.width)
     depth = view.depth.reshape(view.height, view.width)
     columns = np.flatnonzero(on_object.any(axis=0))

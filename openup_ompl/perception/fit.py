@@ -1,14 +1,12 @@
-"""Superquadric fit of an object's point cloud (the model:
-:mod:`~openup_ompl.perception.superquadric`; the covariance:
-:mod:`~openup_ompl.perception.covariance`).
+"""Superquadric fit of an object's point cloud (model: :mod:`~openup_ompl.perception.superquadric`;
+covariance: :mod:`~openup_ompl.perception.covariance`).
 
 Each point's residual is its first-order (Taubin) distance to the surface, ``(G - 1) /
 |grad G|`` [m] with ``G = F^(e1/2)`` (``G`` grows linearly along every ray from the centre,
 so this is the distance along the surface normal up to second order: exactly ``rho - a``
 on a cylinder's side). Solina's volume-weighted ``F^e1 - 1`` and the radial distance
 ``|p| (1 - F^(-e1/2))`` both grow with the point's distance from the centre: on a partial
-view they pull the centre away from the seen side by several times the noise, while this
-residual does not.
+view they pull the centre away from the seen side by several times the noise; this does not.
 
 ``scipy.optimize.least_squares`` (trust-region reflective, exponents and sizes bounded)
 is started from the cloud's principal axes, once with each principal axis as the
@@ -178,6 +176,8 @@ class Silhouette:
             samples: Numbers of latitudes and longitudes of the surface samples.
             support: Height [m, world z] of the surface under the object, or ``None``.
             depth: ``(H, W)`` measured depth [m] (NaN: none), or ``None``.
+        Returns:
+            Its pixel distances to the allowed region, camera, samples, support, depth bound.
         """
         from scipy.ndimage import distance_transform_edt
 

@@ -14,6 +14,7 @@ from openup_ompl.scene import Problem
 
 __all__ = [
     "COVERAGE",
+    "arrival_fraction",
     "clearance_per_u",
     "closing_direction",
     "lateral_sigma",
@@ -114,6 +115,56 @@ def _finger_reach(problem: Problem) -> float:
     corners = _hand_corners(problem, law.with_options(u=0.0)(law.mga))
     approach = np.asarray(problem.robot.spec.approach, dtype=float)
     return float(np.max(corners @ approach)) if corners.size else 0.0
+
+
+def arrival_fraction(problem: Problem, sizes: np.ndarray | None = None) -> float:
+    """The share of the law's extra opening left when the fingertips reach the object.
+
+    Algorithm 3 opens the hand most at ``d = mga`` and closes it linearly to ``c`` at the
+    grasp, so the clearance one unit of ``u`` buys at a distance ``d < mga`` is ``k u d /
+    mga`` (:func:`clearance_per_u` gives ``k``). What the opening must clear is the
+    object where the fingertips first pass it: on a straight final approach the fingertips
+    reach the object's near extent (along the approach) when the palm is ``s = r - t``
+    from the grasp, with ``r`` the fingers' reach from the palm (:func:`_finger_reach`)
+    and ``t`` the object's near extent from the grasp position, both along the approach;
+    there ``d = s / D0`` (``D0`` the start's palm distance, Algorithm 1's denominator) and
+    the share left is ``min(1, d / mga)``. A law that arrives open (``open_arrival``)
+    keeps its whole extra opening: 1.
+
+    Args:
+        problem: The scene at the estimate (robot, grasp, law, object).
+        sizes: The object's half-extents [m] along its axes (default: the scene shape's).
+
+    Returns:
+        The share, in ``(0, 1]`` (unitless).
+
+    Raises:
+        ConfigError: The problem has no object.
+    """
+    shape = problem.object
+    if shape is None:
+        raise ConfigError("scene: object", None, "an [object] the hand closes on")
+    law = problem.hand_law
+    if law.open_arrival:
+        return 1.0
+    from openup_ompl.hand_law import NormalizedDistance
+    from openup_ompl.perception.nominal import nominal_of
+
+    nominal = nominal_of(shape)
+    half = np.asarray(sizes, dtype=float) if sizes is not None else nominal.half
+    placement = pin.XYZQUATToSE3(shape.pose)
+    grasp = problem.grasp
+    approach = grasp.rotation @ np.asarray(problem.robot.spec.approach, dtype=float)
+    approach /= np.linalg.norm(approach)
+    near = (placement.act(nominal.centre) - grasp.translation) @ approach
+    near -= float(np.abs(placement.rotation.T @ approach) @ half)
+    depth = _finger_reach(problem) - near  # palm travel [m] with the tips past the near side
+    robot = problem.robot
+    start = robot.palm_placement(robot.model.createData(), robot.full_q(problem.start, law(1.0)))
+    distance = NormalizedDistance(grasp, start, law.distance, law.rotation_weight)
+    # At least 1 % of mga: a grasp whose tips do not reach the object still opens a little.
+    d = max(depth / distance.start_distance, 0.01 * law.mga)
+    return float(min(d / law.mga, 1.0))
 
 
 def _finger_half_width(problem: Problem) -> float:
@@ -257,6 +308,7 @@ def u_from_covariance(
     sizes: np.ndarray | None = None,
     coverage: float = COVERAGE,
     cross_covariance: np.ndarray | None = None,
+    at_arrival: bool = False,
 ) -> float:
     """The hand law's ``u`` that covers ``coverage`` standard deviations of pose error.
 
@@ -271,6 +323,10 @@ def u_from_covariance(
     ``u = 1`` when the hand cannot cover that error (or ``k = 0``: a hand that does not
     open with ``u``) and the error is not zero.
 
+    ``at_arrival=True`` asks for the cover where the fingertips first pass the object
+    rather than at the maximum aperture: the law has closed the hand to a share ``f`` of
+    its extra opening there (:func:`arrival_fraction`), so ``k`` becomes ``f k``.
+
     Args:
         position_covariance: ``(3, 3)`` [m^2], world frame.
         rotation_covariance: ``(3, 3)`` [rad^2] of a small world-frame rotation.
@@ -278,10 +334,13 @@ def u_from_covariance(
         sizes: The object's half-extents [m] (default: the scene shape's).
         coverage: Standard deviations to cover.
         cross_covariance: ``(3, 3)`` position-rotation covariance (default zero).
+        at_arrival: Cover the error where the fingertips reach the object.
 
     Returns:
         ``u`` in [0, 1].
     """
+    if not isinstance(at_arrival, (bool, np.bool_)):
+        raise ConfigError("at_arrival", at_arrival, "true or false")
     if not (math.isfinite(coverage) and coverage > 0):
         raise ConfigError("coverage", coverage, "a positive number of standard deviations")
     sigma = lateral_sigma(
@@ -290,6 +349,8 @@ def u_from_covariance(
     k = clearance_per_u(problem)
     if sigma == 0:
         return 0.0
+    if at_arrival:
+        k *= arrival_fraction(problem, sizes)
     if k <= 0:
         return 1.0
     return float(min(max(coverage * sigma / k, 0.0), 1.0))

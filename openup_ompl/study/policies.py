@@ -18,12 +18,17 @@ Every policy maps what the trial knows about the object's pose error
   of ``u`` buys (:func:`~openup_ompl.perception.uncertainty.clearance_per_u`). Without
   perception there is no fit and no residual: the policy then takes the known error's
   standard deviation for ``r``, and is the covariance rule for a round object.
-- ``"adaptive"``: opens as far as the covariance rule says the error needs, and no farther
-  than the scene lets the hand pass: the clearance is the planner's own coupled check (no
-  finger or link may touch a neighbour, wall or shelf on the way in, in the scene as
-  believed). It plans at the covariance rule's ``u``; when no collision-free path exists
-  there (the plan fails) it plans again at :data:`FALLBACK_U`, the narrowest hand the law
-  has (:func:`~openup_ompl.study.run.run_trial`).
+- ``"adaptive"``: opens as far as the error needs where the fingertips first pass the
+  object, and no farther than the scene lets the hand pass. The need is the covariance
+  rule's cover taken at the fingertips' arrival rather than at the maximum aperture
+  (``u_from_covariance(..., at_arrival=True)``): Algorithm 3 has closed the hand to a
+  share of its extra opening by then (:func:`~openup_ompl.perception.uncertainty.
+  arrival_fraction`, about a third on the study's Panda grasps), and a finger that lands
+  on a light object pushes it away before the hand closes. The clearance is the planner's
+  own coupled check (no finger or link may touch a neighbour, wall or shelf on the way
+  in, in the scene as believed): when no collision-free path exists at the needed ``u``
+  (the plan fails) it plans again at :data:`FALLBACK_U`, the narrowest hand the law has
+  (:func:`~openup_ompl.study.run.run_trial`).
 - ``"capped"``: the covariance rule's ``u``, capped before planning by the largest ``u``
   whose fingers, swept along a straight approach, are predicted to come no nearer than a
   margin to a neighbour or wall
@@ -159,7 +164,8 @@ def policy_u(policy: str, evidence: Evidence, believed: Problem, safe: float | N
 
     Returns:
         The trial's ``u`` (unitless, in ``[0, 1]``); for ``adaptive``, the ``u`` of its
-        first plan (:data:`FALLBACK_U` if that plan fails).
+        first plan (:func:`~openup_ompl.study.run.run_trial` plans again at
+        :data:`FALLBACK_U` if that plan fails).
     """
     if policy not in NAMED:
         return float(policy)
@@ -171,7 +177,11 @@ def policy_u(policy: str, evidence: Evidence, believed: Problem, safe: float | N
             return 0.0
         return 1.0 if k <= 0 else float(min(COVERAGE * evidence.residual / k, 1.0))
     need = u_from_covariance(
-        evidence.position_covariance, evidence.rotation_covariance, believed, sizes=evidence.sizes
+        evidence.position_covariance,
+        evidence.rotation_covariance,
+        believed,
+        sizes=evidence.sizes,
+        at_arrival=policy == "adaptive",
     )
     if policy in ("covariance", "adaptive"):
         return need
