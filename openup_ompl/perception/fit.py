@@ -34,23 +34,20 @@ from openup_ompl.perception.covariance import (
     measurement_rows,
     parameter_covariance,
 )
+from openup_ompl.perception.silhouette import Silhouette
 from openup_ompl.perception.superquadric import (
     N_PARAMETERS,
-    _angles,
+    SOLIDS,
     _distance,
     _normals,
     _rotations,
+    _solid_distance,
     _split,
     _surface_local,
     checked_points,
 )
 
 __all__ = ["FitOptions", "Silhouette", "fit_superquadric"]
-
-#: How far [m] a fitted surface may come before the depth its pixel measured (the
-#: sensor's noise and the pixel's footprint on a slanted surface: centimetres would
-#: still be caught).
-DEPTH_MARGIN = 0.01
 
 
 @dataclass(frozen=True)
@@ -109,125 +106,6 @@ class FitOptions:
             raise ConfigError("fit.covariance", self.covariance, f"one of {COVARIANCES}")
 
 
-@dataclass(frozen=True)
-class Silhouette:
-    """Free space seen by the camera: where the object may not project.
-
-    A depth camera also sees past the object: a pixel that saw the table or the wall
-    behind says the object is not in front of it. Without this a partial view leaves the
-    unseen side free (a can's visible front half fits an ellipse reaching centimetres
-    behind it equally well). Each surface sample of the superquadric that projects onto
-    such a pixel adds a residual: its image distance to the allowed region (the object's
-    pixels and pixels of occluders in front of it) beyond one pixel (the object's edge lies
-    somewhere between its last pixel centre and the next), in metres at its depth.
-
-    The camera cannot see through the table the object stands on: a sample below the
-    table's top hides behind it, and a view from above let the fitted can grow through
-    the table, or float above it (the top face seen, the bottom hidden). With the
-    ``support``'s height each sample below it adds its depth below it, and one residual,
-    weighted as all the points together, holds the lowest sample on it: the object stands
-    on its support.
-
-    A ray that measured a surface also says the space before it is free: a sample nearer
-    the camera than the depth its pixel measured (on the object or an occluder), by more
-    than :data:`DEPTH_MARGIN`, adds the difference (an occluder's pixels otherwise leave
-    the fit free to grow towards the camera, through the occluder: README, Perception).
-
-    Attributes:
-        distance: ``(H, W)`` pixel distance to the allowed region (0 inside it).
-        position: Camera position [m], world frame.
-        rotation: Camera frame (x right, y down, z forward) in the world frame.
-        intrinsics: ``(fx, fy, cx, cy)`` [px].
-        samples: Surface sample angles (:func:`~openup_ompl.perception.superquadric._angles`).
-        support: Height [m, world z] of the surface the object stands on (None: unknown).
-        depth: ``(H, W)`` depth [m] measured at the allowed pixels (-inf elsewhere: no
-            bound); None: no depth bound.
-    """
-
-    distance: np.ndarray
-    position: np.ndarray
-    rotation: np.ndarray
-    intrinsics: tuple[float, float, float, float]
-    samples: np.ndarray
-    support: float | None = None
-    depth: np.ndarray | None = None
-
-    @classmethod
-    def from_view(
-        cls,
-        object_mask: np.ndarray,
-        occluder_mask: np.ndarray,
-        position: np.ndarray,
-        rotation: np.ndarray,
-        intrinsics: tuple[float, float, float, float],
-        samples: tuple[int, int] = (10, 20),
-        support: float | None = None,
-        depth: np.ndarray | None = None,
-    ) -> Silhouette:
-        """The free space of one view.
-
-        Args:
-            object_mask: ``(H, W)`` the object's pixels.
-            occluder_mask: ``(H, W)`` pixels whose hit is in front of the object (where it
-                may hide) or that measured nothing.
-            position, rotation: The camera's pose, world frame ([m]; ``(3, 3)``, world from
-                camera).
-            intrinsics: ``(fx, fy, cx, cy)`` [pixels].
-            samples: Numbers of latitudes and longitudes of the surface samples.
-            support: Height [m, world z] of the surface under the object, or ``None``.
-            depth: ``(H, W)`` measured depth [m] (NaN: none), or ``None``.
-        Returns:
-            Its pixel distances to the allowed region, camera, samples, support, depth bound.
-        """
-        from scipy.ndimage import distance_transform_edt
-
-        allowed = object_mask | occluder_mask
-        distance = distance_transform_edt(~allowed)
-        free = None
-        if depth is not None:
-            free = np.where(allowed & np.isfinite(depth), depth, -np.inf)
-        return cls(
-            np.asarray(distance, dtype=float),
-            position,
-            rotation,
-            intrinsics,
-            _angles(*samples),
-            support,
-            free,
-        )
-
-    def excess(self, world: np.ndarray) -> np.ndarray:
-        """Each world point's image distance beyond the allowed region, plus its depth
-        below the :attr:`support`.
-
-        Args:
-            world: Points [m], world frame, shape ``(..., 3)``.
-
-        Returns:
-            The excess [m] (image distance scaled to the point's depth), shape ``(...)``.
-        """
-        from scipy.ndimage import map_coordinates
-
-        fx, fy, cx, cy = self.intrinsics
-        shape = world.shape[:-1]
-        camera = (world.reshape(-1, 3) - self.position) @ self.rotation
-        z = np.maximum(camera[:, 2], 1e-3)
-        column = fx * camera[:, 0] / z + cx - 0.5
-        row = fy * camera[:, 1] / z + cy - 0.5
-        pixels = map_coordinates(self.distance, [row, column], order=1, mode="nearest")
-        excess = (np.maximum(pixels - 1.0, 0.0) * z / fx).reshape(shape)
-        if self.depth is not None:
-            height, width = self.depth.shape
-            r = np.clip(np.round(row).astype(int), 0, height - 1)
-            c = np.clip(np.round(column).astype(int), 0, width - 1)
-            inside = (row > -0.5) & (row < height - 0.5) & (column > -0.5) & (column < width - 0.5)
-            before = np.where(inside, self.depth[r, c] - DEPTH_MARGIN - camera[:, 2], 0.0)
-            excess = excess + np.maximum(before, 0.0).reshape(shape)
-        if self.support is None:
-            return excess
-        return excess + np.maximum(self.support - world[..., 2], 0.0)
-
-
 def _batch_residuals(
     xs: np.ndarray,
     points: np.ndarray,
@@ -235,19 +113,19 @@ def _batch_residuals(
     silhouette: Silhouette | None = None,
     weights: np.ndarray | None = None,
     prior: SizePrior | None = None,
+    solid: str | None = None,
 ) -> np.ndarray:
     """Residuals of ``k`` parameter sets at once, ``(k, n [+ m [+ 1]] [+ 3])`` (the
     points, the silhouette's samples, the resting on the support, the sizes' prior): one
     vectorised pass for a whole finite-difference Jacobian (12 sets cost about two single
-    evaluations)."""
-    rotations = reference @ _rotations(xs[:, 8:11])
-    local = (points[None] - xs[:, None, 5:8]) @ rotations
-    sizes, e1, e2 = xs[:, None, 0:3], xs[:, 3:4], xs[:, 4:5]
-    distance = _distance(local, sizes, e1, e2)
+    evaluations). A ``solid``'s points are measured by their exact distance to it."""
+    distance = _points_distance(xs, points, reference, solid)
     if weights is not None:
         distance = distance * weights
     parts = [distance]
     if silhouette is not None:
+        rotations = reference @ _rotations(xs[:, 8:11])
+        sizes, e1, e2 = xs[:, None, 0:3], xs[:, 3:4], xs[:, 4:5]
         surface = _surface_local(sizes, e1, e2, silhouette.samples)
         world = surface @ rotations.transpose(0, 2, 1) + xs[:, None, 5:8]
         parts.append(silhouette.excess(world))
@@ -258,6 +136,18 @@ def _batch_residuals(
     if prior is not None:
         parts.append(prior.rows(xs[:, 0:3]))
     return np.concatenate(parts, axis=1)
+
+
+def _points_distance(
+    xs: np.ndarray, points: np.ndarray, reference: np.ndarray, solid: str | None
+) -> np.ndarray:
+    """The points' signed distances [m] to ``k`` parameter sets' surfaces, ``(k, n)``: the
+    superquadric's first-order one, or the exact one to the ``solid``."""
+    local = (points[None] - xs[:, None, 5:8]) @ (reference @ _rotations(xs[:, 8:11]))
+    sizes, e1, e2 = xs[:, None, 0:3], xs[:, 3:4], xs[:, 4:5]
+    if solid is None:
+        return np.asarray(_distance(local, sizes, e1, e2))
+    return _solid_distance(local, sizes, solid)
 
 
 _ORDERS = tuple(itertools.permutations(range(3)))
@@ -358,6 +248,7 @@ def fit_superquadric(
     silhouette: Silhouette | None = None,
     noise: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
     size_prior: tuple[np.ndarray, float, tuple[tuple[int, int], ...]] | None = None,
+    solid: str | None = None,
 ) -> SuperquadricFit:
     """Fit a superquadric to ``points`` [m] (world frame) by least squares.
 
@@ -380,12 +271,16 @@ def fit_superquadric(
             fitted half-size is pulled to the one it best matches: without it a fit at
             high noise may grow away from the camera behind its own silhouette) and the
             pairs of half-sizes held equal (:class:`SizePrior`); None: the sizes free.
+        solid: The solid the scene names (a key of
+            :data:`~openup_ompl.perception.superquadric.SOLIDS`): its exponents are held
+            at the solid's and each point's residual is its exact distance to it; None:
+            the superquadric free (a mesh's first guess).
 
     Raises:
         TooFewPoints: Fewer points than twice the 11 parameters (fewer than 11 leaves the
             fit undetermined; a few more than 11 leave ``s^2`` meaningless).
         ConfigError: ``points`` not of shape ``(N, 3)``, or not finite, or at one place or
-            on one line.
+            on one line; an unknown ``solid``.
 
     Returns:
         The fit: the superquadric, its parameters' covariance and the residuals.
@@ -394,8 +289,7 @@ def fit_superquadric(
 
     options = options or FitOptions()
     points = checked_points(points)
-    low = np.array([options.min_size] * 3 + [options.min_exponent] * 2 + [-np.inf] * 6)
-    high = np.array([options.max_size] * 3 + [options.max_exponent] * 2 + [np.inf] * 6)
+    low, high = _bounds(options, solid)
     evaluations = 0
 
     def solve(x0: np.ndarray, reference: np.ndarray, budget: int, free: Any, *extra: Any) -> Any:
@@ -417,47 +311,64 @@ def fit_superquadric(
 
     # A few steps on the points alone; the best start sets the weights and the prior's scale.
     trials = [
-        (solve(x0, reference, options.trial_evaluations, None), reference)
+        (solve(x0, reference, options.trial_evaluations, None, None, None, solid), reference)
         for x0, reference in _starts(points, options)
     ]
     first, reference = min(trials, key=lambda trial: float(trial[0].cost))
     weights = None
     if noise is not None:
         # Weights from the best start's surface: its normals are already close enough.
-        fitted = _split(first.x, reference)
-        local = fitted.local(points)
-        normals = _normals(local, fitted.sizes, *fitted.exponents) @ fitted.rotation.T
-        sigma = noise(points, normals)
+        sigma = noise(points, _world_normals(first.x, reference, points))
         weights = float(np.mean(sigma)) / sigma
     prior = None
     if size_prior is not None:
-        scale = _rms(first.fun[: len(points)])  # the points' spread about the best start
+        scale = float(np.sqrt(np.mean(first.fun[: len(points)] ** 2)))  # their spread
         half, spread, ties = size_prior
         tie = math.sqrt(len(points))
         prior = SizePrior(np.asarray(half, dtype=float), spread, scale, tuple(ties), tie)
     # Every start solved with the free space: the points alone may pick a wrong basin.
     budget = options.max_evaluations
-    finals = [(solve(t.x, r, budget, silhouette, weights, prior), r) for t, r in trials]
+    finals = [(solve(t.x, r, budget, silhouette, weights, prior, solid), r) for t, r in trials]
     result, reference = min(finals, key=lambda final: float(final[0].cost))
-    return _result(result.x, reference, points, silhouette, weights, prior, options, evaluations)
+    how = (silhouette, weights, prior, solid)
+    return _result(result.x, reference, points, how, options, evaluations)
+
+
+def _world_normals(x: np.ndarray, reference: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """The unit normals (world frame) of the superquadric ``x`` at the points."""
+    sq = _split(x, reference)
+    return np.asarray(_normals(sq.local(points), sq.sizes, *sq.exponents) @ sq.rotation.T)
+
+
+def _bounds(options: FitOptions, solid: str | None) -> tuple[np.ndarray, np.ndarray]:
+    """The parameters' bounds; a ``solid``'s exponents held at its own (the bounds must
+    differ: by 1e-6)."""
+    low = np.array([options.min_size] * 3 + [options.min_exponent] * 2 + [-np.inf] * 6)
+    high = np.array([options.max_size] * 3 + [options.max_exponent] * 2 + [np.inf] * 6)
+    if solid is not None:
+        if solid not in SOLIDS:
+            raise ConfigError("solid", solid, f"None or one of {sorted(SOLIDS)}")
+        held = [options.min_exponent if e is None else e for e in SOLIDS[solid]]
+        low[3:5], high[3:5] = held, np.add(held, 1e-6)
+    return low, high
 
 
 def _result(
     x: np.ndarray,
     reference: np.ndarray,
     points: np.ndarray,
-    silhouette: Silhouette | None,
-    weights: np.ndarray | None,
-    prior: SizePrior | None,
+    fitted: tuple[Any, ...],
     options: FitOptions,
     evaluations: int,
 ) -> SuperquadricFit:
-    """The fit at its optimum ``x`` (about ``reference``), with its covariance."""
+    """The fit at its optimum ``x`` (about ``reference``; ``fitted``: the free space,
+    weights, prior and solid it was fitted with), with its covariance."""
     superquadric = _split(x, reference)
     # Re-linearise about the fitted orientation: the rotation block is then in its frame.
     x = x.copy()
     x[8:11] = 0.0
-    args = (points, superquadric.rotation, silhouette, weights, prior)
+    silhouette, weights, prior = fitted[:3]
+    args = (points, superquadric.rotation, *fitted)
     residuals = _residuals(x, *args)
     jacobian = _jacobian(x, *args)
     n = points.shape[0]
@@ -479,7 +390,3 @@ def _result(
         kind=options.covariance,
         prior_rows=0 if prior is None else 3 + len(prior.ties),
     )
-
-
-def _rms(values: np.ndarray) -> float:
-    return float(np.sqrt(np.mean(np.square(values)))) if values.size else 0.0

@@ -35,6 +35,7 @@ __all__ = [
     "NoiseOptions",
     "PointCloud",
     "kinect_sigmas",
+    "noise_covariance",
     "noisy_cloud",
     "normal_sigma",
 ]
@@ -171,6 +172,41 @@ def noisy_cloud(
         dropped=dropped,
         scene_points=world[~on_object],
     )
+
+
+def noise_covariance(
+    position: np.ndarray, rotation: np.ndarray, options: NoiseOptions | None = None
+) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    """The sensor noise's covariance at each measured point, for the fit's expected
+    distance (:func:`~openup_ompl.perception.fit.fit_superquadric`).
+
+    Returns ``covariance(points, normals)`` [m^2]: at each point (world frame) and unit
+    normal of the fitted surface, ``diag(sigma_L^2, sigma_L^2, sigma_z^2)`` in the camera
+    frame at the incidence between the camera's ray and the normal (capped at
+    ``max_incidence``), turned into the world frame; ``options.scale`` included.
+
+    Args:
+        position: The camera's position [m], world frame.
+        rotation: The camera's orientation (3 x 3, camera to world).
+        options: Noise scale and limits (default :class:`NoiseOptions`).
+
+    Returns:
+        The function ``covariance(points (n, 3) [m], normals (n, 3)) -> (n, 3, 3)`` [m^2].
+    """
+    options = options or NoiseOptions()
+    cap = math.radians(options.max_incidence)
+
+    def covariance(points: np.ndarray, normals: np.ndarray) -> np.ndarray:
+        camera = (points - position) @ rotation
+        depth = np.maximum(camera[:, 2], 1e-3)
+        rays = camera / np.linalg.norm(camera, axis=1, keepdims=True)
+        cosine = np.abs(np.sum(rays * (normals @ rotation), 1))
+        incidence = np.minimum(np.arccos(np.clip(cosine, 0, 1)), cap)
+        axial, lateral = _sigmas(depth, incidence, options)
+        variances = np.column_stack([lateral**2, lateral**2, axial**2])
+        return np.einsum("ij,nj,kj->nik", rotation, variances, rotation)
+
+    return covariance
 
 
 def normal_sigma(
