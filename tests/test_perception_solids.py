@@ -66,8 +66,9 @@ def test_a_noise_free_view_sizes_the_solid(name: str) -> None:
         assert problem.object.size is not None
         expected = np.sort(problem.object.size / 2)
     else:
-        assert problem.object.radius is not None and problem.object.length is not None
-        expected = np.sort([problem.object.radius, problem.object.radius, problem.object.length / 2])
+        radius, length = problem.object.radius, problem.object.length
+        assert radius is not None and length is not None
+        expected = np.sort([radius, radius, length / 2])
     sizes = np.sort(seen.fit.superquadric.sizes)
     assert np.all(np.abs(sizes - expected) < 1e-4), (sizes, expected)
     e1, e2 = seen.fit.superquadric.exponents
