@@ -26,7 +26,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from openup_ompl.perception.superquadric import N_PARAMETERS, POSITION, ROTATION, Superquadric
+from openup_ompl.perception.superquadric import (
+    N_PARAMETERS,
+    POSITION,
+    ROTATION,
+    Superquadric,
+    _hidden_faces,
+)
 
 __all__ = ["COVARIANCES", "Outline", "SuperquadricFit", "measurement_rows", "parameter_covariance"]
 
@@ -55,12 +61,15 @@ class Outline:
         camera: The camera's position [m], world frame.
         focal: Its focal length [px].
         lateral: The sensor's lateral noise [m] at the object (its noise scale included).
+        max_incidence: The sensor's grazing limit [deg]: a face seen beyond it gives no
+            point, and is measured by its edge whatever points the noise put on it.
     """
 
     points: np.ndarray
     camera: np.ndarray
     focal: float
     lateral: float
+    max_incidence: float = 90.0  # [deg]
 
 
 @dataclass(frozen=True)
@@ -208,16 +217,20 @@ class SuperquadricFit:
 
     def _edges(self, data: np.ndarray, outline: Outline) -> tuple[np.ndarray, np.ndarray]:
         """The points' rows without the sizes' information of the points in an edge's
-        rounding, and one whitened row per unseen face: its edge ``c . u_i + a_i`` (sign
-        by side) measured across the line of sight (:class:`Outline`)."""
+        rounding, and one whitened row per unseen face (hidden from the camera, or with
+        no point): its edge ``c . u_i + a_i`` (sign by side) measured across the line of
+        sight (:class:`Outline`)."""
         sq = self.superquadric
         local = sq.local(outline.points)
-        ratio = np.abs(local) / sq.sizes
+        box = (sq.rotation[None], sq.position[None], sq.sizes[None])
+        hidden = _hidden_faces(*box, outline.camera, outline.max_incidence)[0].reshape(3, 2)
+        ratio = np.stack([local / sq.sizes, -local / sq.sizes], axis=-1)  # (n, 3, +/-)
         e1, e2 = sq.exponents
-        if e2 >= SHARP:  # a round section is one surface
-            ratio[:, :2] = np.hypot(ratio[:, 0], ratio[:, 1])[:, None]
-        face = np.argmax(ratio, axis=1)
-        side = np.sign(local[np.arange(local.shape[0]), face])
+        if e2 >= SHARP:  # a round section is one surface, seen
+            hidden[:2] = False
+            ratio[:, :2] = np.hypot(*(local[:, :2] / sq.sizes[:2]).T)[:, None, None]
+        best = np.argmax(np.where(hidden, -np.inf, ratio).reshape(-1, 6), axis=1)
+        face, side = best // 2, 1 - 2 * (best % 2)
         ray = sq.position - outline.camera
         depth = float(np.linalg.norm(ray))
         sigma = np.sqrt((depth / outline.focal) ** 2 / 12 + outline.lateral**2)
@@ -228,9 +241,9 @@ class SuperquadricFit:
             data[: self.points][face != i, i] = 0.0
             axis = sq.rotation[:, i]
             across = float(np.linalg.norm(np.cross(axis, ray))) / depth
-            for sign in (1.0, -1.0):
-                if np.any((face == i) & (side == sign)):
-                    continue  # its points measure it
+            for k, sign in enumerate((1.0, -1.0)):
+                if not hidden[i, k] and np.any((face == i) & (side == sign)):
+                    continue  # seen: its points measure it
                 row = np.zeros(N_PARAMETERS)
                 row[i], row[POSITION] = sign, axis
                 rows.append(row * across / sigma)

@@ -39,6 +39,7 @@ from openup_ompl.perception.superquadric import (
     N_PARAMETERS,
     SOLIDS,
     _distance,
+    _hidden_faces,
     _normals,
     _rotations,
     _solid_distance,
@@ -114,12 +115,14 @@ def _batch_residuals(
     weights: np.ndarray | None = None,
     prior: SizePrior | None = None,
     solid: str | None = None,
+    hidden: np.ndarray | None = None,
 ) -> np.ndarray:
     """Residuals of ``k`` parameter sets at once, ``(k, n [+ m [+ 1]] [+ 3])`` (the
     points, the silhouette's samples, the resting on the support, the sizes' prior): one
     vectorised pass for a whole finite-difference Jacobian (12 sets cost about two single
-    evaluations). A ``solid``'s points are measured by their exact distance to it."""
-    distance = _points_distance(xs, points, reference, solid)
+    evaluations). A ``solid``'s points are measured by their exact distance to its faces
+    not ``hidden`` (:func:`_points_distance`)."""
+    distance = _points_distance(xs, points, reference, solid, hidden)
     if weights is not None:
         distance = distance * weights
     parts = [distance]
@@ -139,15 +142,22 @@ def _batch_residuals(
 
 
 def _points_distance(
-    xs: np.ndarray, points: np.ndarray, reference: np.ndarray, solid: str | None
+    xs: np.ndarray,
+    points: np.ndarray,
+    reference: np.ndarray,
+    solid: str | None,
+    hidden: np.ndarray | None = None,
 ) -> np.ndarray:
     """The points' signed distances [m] to ``k`` parameter sets' surfaces, ``(k, n)``: the
-    superquadric's first-order one, or the exact one to the ``solid``."""
+    superquadric's first-order one, or the exact one to the ``solid``'s faces not
+    ``hidden`` (``(6,)``, :func:`~openup_ompl.perception.superquadric._hidden_faces`;
+    held, not a function of the parameters: a fit free to turn a face past the grazing
+    limit would free its points)."""
     local = (points[None] - xs[:, None, 5:8]) @ (reference @ _rotations(xs[:, 8:11]))
     sizes, e1, e2 = xs[:, None, 0:3], xs[:, 3:4], xs[:, 4:5]
     if solid is None:
         return np.asarray(_distance(local, sizes, e1, e2))
-    return _solid_distance(local, sizes, solid)
+    return _solid_distance(local, sizes, solid, hidden)
 
 
 _ORDERS = tuple(itertools.permutations(range(3)))
@@ -330,7 +340,14 @@ def fit_superquadric(
     budget = options.max_evaluations
     finals = [(solve(t.x, r, budget, silhouette, weights, prior, solid), r) for t, r in trials]
     result, reference = min(finals, key=lambda final: float(final[0].cost))
-    how = (silhouette, weights, prior, solid)
+    hidden = None
+    if solid is not None and silhouette is not None:
+        # The faces the camera does not see, from the solved fit: its points measure none.
+        sq = _split(result.x, reference)
+        box = (sq.rotation[None], sq.position[None], sq.sizes[None])
+        hidden = _hidden_faces(*box, silhouette.position, silhouette.max_incidence)[0]
+        result = solve(result.x, reference, budget, silhouette, weights, prior, solid, hidden)
+    how = (silhouette, weights, prior, solid, hidden)
     return _result(result.x, reference, points, how, options, evaluations)
 
 
@@ -362,7 +379,7 @@ def _result(
     evaluations: int,
 ) -> SuperquadricFit:
     """The fit at its optimum ``x`` (about ``reference``; ``fitted``: the free space,
-    weights, prior and solid it was fitted with), with its covariance."""
+    weights, prior, solid and hidden faces it was fitted with), with its covariance."""
     superquadric = _split(x, reference)
     # Re-linearise about the fitted orientation: the rotation block is then in its frame.
     x = x.copy()

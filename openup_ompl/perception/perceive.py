@@ -221,7 +221,8 @@ def perceive(
     spread = noise_covariance(view.position, view.rotation, noise) if weighted else None
     depth = np.median((cloud.points - view.position) @ view.rotation[:, 2], keepdims=True)
     lateral = float(kinect_sigmas(depth, np.zeros(1), noise)[1][0])
-    outline = Outline(cloud.points, view.position, cam.options.intrinsics()[0], lateral)
+    focal = cam.options.intrinsics()[0]
+    outline = Outline(cloud.points, view.position, focal, lateral, noise.max_incidence)
     sensor = (weights, spread)
     first = _fitted(problem, cloud.points, fit, shape, sensor, support, view, options, outline)
     result, pose, covariance, u = first

@@ -50,6 +50,8 @@ class Silhouette:
         support: Height [m, world z] of the surface the object stands on (None: unknown).
         depth: ``(H, W)`` depth [m] measured at the allowed pixels (-inf elsewhere: no
             bound); None: no depth bound.
+        max_incidence: The sensor's grazing limit [deg]: a face seen beyond it gives no
+            point (a point on it is another face's, put across their edge by the noise).
     """
 
     distance: np.ndarray
@@ -59,6 +61,7 @@ class Silhouette:
     samples: np.ndarray
     support: float | None = None
     depth: np.ndarray | None = None
+    max_incidence: float = 90.0  # [deg]
 
     @classmethod
     def from_view(
@@ -71,6 +74,7 @@ class Silhouette:
         samples: tuple[int, int] = (10, 20),
         support: float | None = None,
         depth: np.ndarray | None = None,
+        max_incidence: float = 90.0,
     ) -> Silhouette:
         """The free space of one view.
 
@@ -84,6 +88,7 @@ class Silhouette:
             samples: Numbers of latitudes and longitudes of the surface samples.
             support: Height [m, world z] of the surface under the object, or ``None``.
             depth: ``(H, W)`` measured depth [m] (NaN: none), or ``None``.
+            max_incidence: The sensor's grazing limit [deg].
         Returns:
             Its pixel distances to the allowed region, camera, samples, support, depth bound.
         """
@@ -102,6 +107,7 @@ class Silhouette:
             _angles(*samples),
             support,
             free,
+            max_incidence,
         )
 
     def excess(self, world: np.ndarray) -> np.ndarray:

@@ -110,23 +110,60 @@ SOLIDS: dict[str, tuple[float | None, float | None]] = {
 }
 
 
-def _solid_distance(local: np.ndarray, sizes: np.ndarray, solid: str) -> np.ndarray:
+def _hidden_faces(
+    rotations: np.ndarray,
+    positions: np.ndarray,
+    sizes: np.ndarray,
+    camera: np.ndarray,
+    max_incidence: float,
+) -> np.ndarray:
+    """Which faces of boxes (``+x, -x, +y, -y, +z, -z`` of their frames) a camera at
+    ``camera`` [m] sees beyond ``max_incidence`` [deg] at their centres, or from behind:
+    the sensor returns no point from them.
+
+    Args:
+        rotations: ``(k, 3, 3)`` frames in the world.
+        positions: ``(k, 3)`` centres [m], world frame.
+        sizes: ``(k, 3)`` half-sizes [m].
+        camera: The camera's position [m], world frame.
+        max_incidence: The sensor's grazing limit [deg].
+
+    Returns:
+        ``(k, 6)`` booleans, True: hidden.
+    """
+    axes = np.repeat(rotations.transpose(0, 2, 1), 2, axis=1)  # (k, 6, 3): x, x, y, y...
+    normals = axes * np.array([1.0, -1.0] * 3)[None, :, None]
+    centres = positions[:, None, :] + normals * np.repeat(sizes, 2, axis=1)[..., None]
+    rays = centres - np.asarray(camera, dtype=float)
+    cosine = -np.sum(normals * rays, axis=-1) / np.linalg.norm(rays, axis=-1)
+    return np.asarray(cosine < math.cos(math.radians(max_incidence)))
+
+
+def _solid_distance(
+    local: np.ndarray, sizes: np.ndarray, solid: str, hidden: np.ndarray | None = None
+) -> np.ndarray:
     """Signed Euclidean distance [m] of points (the superquadric's frame) to the solid of
     its half-sizes: a box, a cylinder about z (radius the mean of ``a1, a2``) or a ball
     (radius the mean of the three). Exact inside and out: ``|max(q, 0)| + min(max_i q_i,
     0)``, ``q`` the point's excess over each half-extent. The superquadric of the sharpest
     exponent rounds a box's edge over a few per cent of its half side, and a point of a
     face near the edge lies up to a millimetre outside it: the fit grew the box's sizes by
-    1-2 mm into the outline's pixel (at no noise). Broadcasts like :func:`_distance`."""
+    1-2 mm into the outline's pixel (at no noise). The ``hidden`` faces (``(..., 6)``,
+    :func:`_hidden_faces`; a cylinder's ends are its ``z`` faces) are left out, as if the
+    solid ran on behind them: the sensor gives no point on them, and a point the noise
+    carried across an edge onto one measured it by chance (their number jumped between
+    seeds). Broadcasts like :func:`_distance`."""
     if solid == "sphere":
         return np.asarray(np.linalg.norm(local, axis=-1) - sizes.mean(axis=-1))
+    faces = np.stack([local - sizes, -local - sizes], axis=-1)  # (..., 3, 2): +, - sides
+    if hidden is not None:
+        faces = np.where(hidden.reshape(*hidden.shape[:-1], 3, 2), -np.inf, faces)
+    q = faces.max(axis=-1)
     if solid == "cylinder":
         radius = (sizes[..., 0] + sizes[..., 1]) / 2
-        rho = np.hypot(local[..., 0], local[..., 1])
-        q = np.stack([rho - radius, np.abs(local[..., 2]) - sizes[..., 2]], axis=-1)
-    else:
-        q = np.abs(local) - sizes
-    return np.asarray(np.linalg.norm(np.maximum(q, 0.0), axis=-1) + np.minimum(q.max(axis=-1), 0.0))
+        q = np.stack([np.hypot(local[..., 0], local[..., 1]) - radius, q[..., 2]], axis=-1)
+    outside = np.linalg.norm(np.maximum(q, 0.0), axis=-1)
+    return np.asarray(outside + np.minimum(q.max(axis=-1), 0.0))
 
 
 def _normals(local: np.ndarray, sizes: np.ndarray, e1: float, e2: float) -> np.ndarray:
