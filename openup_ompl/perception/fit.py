@@ -181,6 +181,9 @@ class SizePrior:
         noise: The points' residuals' standard deviation [m] (the rows' scale).
         ties: Pairs of the superquadric's half-sizes (indices) held equal.
         tie: Weight of the ties' rows.
+        ordered: The half-sizes are the nominal ones in their order (a cylinder's axis is
+            the superquadric's z once its section is held round: matched freely, a fit
+            collapsed onto a can's top took its radius for its height).
     """
 
     half: np.ndarray
@@ -188,6 +191,7 @@ class SizePrior:
     noise: float
     ties: tuple[tuple[int, int], ...] = ()
     tie: float = 1.0
+    ordered: bool = False
 
     def rows(self, sizes: np.ndarray) -> np.ndarray:
         """The half-sizes' gaps to the nominal ones, in the order that matches them best.
@@ -200,7 +204,8 @@ class SizePrior:
             sigma``, then the tied half-sizes' differences by ``tie``.
         """
         half = np.asarray(self.half, dtype=float)
-        gaps = np.stack([sizes - half[list(order)] for order in _ORDERS])  # (6, k, 3)
+        orders = _ORDERS[:1] if self.ordered else _ORDERS
+        gaps = np.stack([sizes - half[list(order)] for order in orders])  # (6, k, 3)
         best = np.argmin(np.sum(gaps**2, axis=2), axis=0)
         gap = gaps[best, np.arange(sizes.shape[0])]
         tied = [self.tie * (sizes[:, i] - sizes[:, j]) for i, j in self.ties]
@@ -335,7 +340,8 @@ def fit_superquadric(
         scale = float(np.sqrt(np.mean(first.fun[: len(points)] ** 2)))  # their spread
         half, spread, ties = size_prior
         tie = math.sqrt(len(points))
-        prior = SizePrior(np.asarray(half, dtype=float), spread, scale, tuple(ties), tie)
+        half = np.asarray(half, dtype=float)
+        prior = SizePrior(half, spread, scale, tuple(ties), tie, solid == "cylinder")
     # Every start solved with the free space: the points alone may pick a wrong basin.
     budget = options.max_evaluations
     finals = [(solve(t.x, r, budget, silhouette, weights, prior, solid), r) for t, r in trials]
