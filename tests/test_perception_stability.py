@@ -11,11 +11,28 @@ import numpy as np
 import pytest
 
 import openup_ompl as ou
-from openup_ompl.perception import NoiseOptions, perceive
+from openup_ompl.perception import NoiseOptions, Perception, perceive
 from openup_ompl.perception.camera import CameraOptions, DepthCamera, camera_of_scene
 from openup_ompl.perception.extrinsic import PerceptionOptions
 
 UNSEEN = Path(__file__).resolve().parent.parent / "benchmarks" / "unseen" / "panda"
+
+
+def _views(problem: ou.Problem, cam: DepthCamera) -> list[tuple[int, Perception]]:
+    """The perception of seeds 1-4 at noise 1, the sensor noise alone."""
+    return [
+        (
+            seed,
+            perceive(
+                problem,
+                noise=NoiseOptions(scale=1.0),
+                depth_camera=cam,
+                rng=np.random.default_rng(seed),
+                options=PerceptionOptions.exact(),
+            ),
+        )
+        for seed in (1, 2, 3, 4)
+    ]
 
 
 def _us(scene: str, noise: float, camera: CameraOptions | None = None) -> list[float]:
@@ -77,14 +94,7 @@ def test_every_start_is_solved_in_the_drawer() -> None:
     problem = ou.load_scene(UNSEEN / "side_drawer.toml")
     cam = DepthCamera(problem, CameraOptions(elevation=20.0, azimuth=46.0))
     assert problem.object is not None
-    for seed in (1, 2, 3, 4):
-        seen = perceive(
-            problem,
-            noise=NoiseOptions(scale=1.0),
-            depth_camera=cam,
-            rng=np.random.default_rng(seed),
-            options=PerceptionOptions.exact(),
-        )
+    for seed, seen in _views(problem, cam):
         error = float(np.linalg.norm(seen.pose[:3] - problem.object.pose[:3]))
         assert error < 0.005, (seed, error)
 
@@ -95,14 +105,7 @@ def test_a_cans_section_is_fitted_round() -> None:
     problem = ou.load_scene(UNSEEN / "pillars.toml")
     cam = DepthCamera(problem, camera_of_scene(problem))
     assert problem.object is not None
-    for seed in (1, 2, 3, 4):
-        seen = perceive(
-            problem,
-            noise=NoiseOptions(scale=1.0),
-            depth_camera=cam,
-            rng=np.random.default_rng(seed),
-            options=PerceptionOptions.exact(),
-        )
+    for seed, seen in _views(problem, cam):
         a1, a2, _ = seen.fit.superquadric.sizes
         assert abs(a1 - a2) < 1e-4, (seed, a1, a2)
         assert np.linalg.norm(seen.pose[:3] - problem.object.pose[:3]) < 0.0015

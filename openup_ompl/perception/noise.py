@@ -197,16 +197,25 @@ def noise_covariance(
     cap = math.radians(options.max_incidence)
 
     def covariance(points: np.ndarray, normals: np.ndarray) -> np.ndarray:
-        camera = (points - position) @ rotation
-        depth = np.maximum(camera[:, 2], 1e-3)
-        rays = camera / np.linalg.norm(camera, axis=1, keepdims=True)
-        cosine = np.abs(np.sum(rays * (normals @ rotation), 1))
-        incidence = np.minimum(np.arccos(np.clip(cosine, 0, 1)), cap)
+        depth, incidence, _ = _seen(points, normals, position, rotation, cap)
         axial, lateral = _sigmas(depth, incidence, options)
         variances = np.column_stack([lateral**2, lateral**2, axial**2])
         return np.einsum("ij,nj,kj->nik", rotation, variances, rotation)
 
     return covariance
+
+
+def _seen(
+    points: np.ndarray, normals: np.ndarray, position: np.ndarray, rotation: np.ndarray, cap: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each point's depth [m] in the camera, the incidence [rad] of the camera's ray on
+    its normal (capped at ``cap``), and the normals in the camera frame."""
+    camera = (points - position) @ rotation
+    depth = np.maximum(camera[:, 2], 1e-3)
+    rays = camera / np.linalg.norm(camera, axis=1, keepdims=True)
+    normal = normals @ rotation
+    incidence = np.minimum(np.arccos(np.clip(np.abs(np.sum(rays * normal, 1)), 0, 1)), cap)
+    return depth, incidence, normal
 
 
 def normal_sigma(
@@ -232,11 +241,7 @@ def normal_sigma(
     cap = math.radians(options.max_incidence)
 
     def sigma(points: np.ndarray, normals: np.ndarray) -> np.ndarray:
-        camera = (points - position) @ rotation
-        depth = np.maximum(camera[:, 2], 1e-3)
-        rays = camera / np.linalg.norm(camera, axis=1, keepdims=True)
-        normal = normals @ rotation
-        incidence = np.minimum(np.arccos(np.clip(np.abs(np.sum(rays * normal, 1)), 0, 1)), cap)
+        depth, incidence, normal = _seen(points, normals, position, rotation, cap)
         axial, lateral = _sigmas(depth, incidence, replace(options, scale=1.0))
         variance = (
             lateral**2 * (normal[:, 0] ** 2 + normal[:, 1] ** 2) + axial**2 * normal[:, 2] ** 2
