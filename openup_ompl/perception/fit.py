@@ -39,6 +39,7 @@ from openup_ompl.perception.superquadric import (
     N_PARAMETERS,
     SOLIDS,
     _distance,
+    _held_faces,
     _hidden_faces,
     _normals,
     _rotations,
@@ -368,6 +369,8 @@ def fit_superquadric(
         sq = _split(result.x, reference)
         box = (sq.rotation[None], sq.position[None], sq.sizes[None])
         hidden = _hidden_faces(*box, silhouette.position, silhouette.max_incidence)[0]
+        if solid == "box":
+            hidden = hidden & ~_held_faces(sq.local(points), sq.sizes)
         result = solve(result.x, reference, budget, silhouette, weights, prior, solid, hidden)
     how = (silhouette, weights, prior, solid, hidden)
     return _result(result.x, reference, points, how, options, evaluations)

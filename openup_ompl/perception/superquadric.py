@@ -139,6 +139,31 @@ def _hidden_faces(
     return np.asarray(cosine < math.cos(math.radians(max_incidence)))
 
 
+#: A box's face that holds at least this share of the points is seen whatever its
+#: incidence at its centre (:func:`_held_faces`).
+SEEN_SHARE = 0.15
+
+
+def _held_faces(local: np.ndarray, sizes: np.ndarray) -> np.ndarray:
+    """Which faces of a box (``+x, -x, +y, -y, +z, -z``) hold at least :data:`SEEN_SHARE`
+    of the points (each point counted on the face it lies nearest to, in the box's frame):
+    the sensor returned them, so the face is seen. A face near the grazing limit at its
+    centre is seen over part of it (the clutter box's side held 41 of 235 points and was
+    judged hidden: the fit tilted 17 degrees, 11.9 mm off); the few points noise carries
+    across an edge stay under the share (up to 10 % on the study's plank).
+
+    Args:
+        local: ``(n, 3)`` points [m] in the box's frame.
+        sizes: ``(3,)`` half-sizes [m].
+
+    Returns:
+        ``(6,)`` booleans, True: the face holds the share.
+    """
+    excess = np.stack([local - sizes, -local - sizes], axis=-1).reshape(len(local), 6)
+    counts = np.bincount(np.argmax(excess, axis=1), minlength=6)
+    return np.asarray(counts >= SEEN_SHARE * len(local))
+
+
 def _solid_distance(
     local: np.ndarray, sizes: np.ndarray, solid: str, hidden: np.ndarray | None = None
 ) -> np.ndarray:
