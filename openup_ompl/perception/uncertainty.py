@@ -117,6 +117,13 @@ def _finger_reach(problem: Problem) -> float:
     return float(np.max(corners @ approach)) if corners.size else 0.0
 
 
+def _grasp_approach(problem: Problem) -> np.ndarray:
+    """The unit direction (world frame) the palm moves in to reach the grasp."""
+    grasp = pin.XYZQUATToSE3(problem.grasp_pose)
+    approach = grasp.rotation @ np.asarray(problem.robot.spec.approach, dtype=float)
+    return np.asarray(approach / np.linalg.norm(approach))
+
+
 def arrival_fraction(problem: Problem, sizes: np.ndarray | None = None) -> float:
     """The share of the law's extra opening left when the fingertips reach the object.
 
@@ -154,8 +161,7 @@ def arrival_fraction(problem: Problem, sizes: np.ndarray | None = None) -> float
     half = np.asarray(sizes, dtype=float) if sizes is not None else nominal.half
     placement = pin.XYZQUATToSE3(shape.pose)
     grasp = problem.grasp
-    approach = grasp.rotation @ np.asarray(problem.robot.spec.approach, dtype=float)
-    approach /= np.linalg.norm(approach)
+    approach = _grasp_approach(problem)
     near = (placement.act(nominal.centre) - grasp.translation) @ approach
     near -= float(np.abs(placement.rotation.T @ approach) @ half)
     depth = _finger_reach(problem) - near  # palm travel [m] with the tips past the near side
@@ -263,9 +269,8 @@ def _contacts(problem: Problem, closing: np.ndarray, half: np.ndarray) -> list[n
 
     placement = pin.XYZQUATToSE3(problem.object.pose)
     centre = placement.act(nominal_of(problem.object).centre)
-    grasp = pin.XYZQUATToSE3(problem.grasp_pose)
-    approach = grasp.rotation @ np.asarray(problem.robot.spec.approach, dtype=float)
-    tips = grasp.translation + _finger_reach(problem) * approach
+    approach = _grasp_approach(problem)
+    tips = np.asarray(problem.grasp_pose[:3], dtype=float) + _finger_reach(problem) * approach
     local = placement.rotation.T @ (tips - centre)
     reach = placement.rotation @ np.clip(local, -half, half)
     reach = reach - (reach @ closing) * closing
@@ -291,9 +296,7 @@ def _closing_variances(
 
 def _across_approach(position_covariance: np.ndarray, problem: Problem) -> float:
     """The largest standard deviation [m] of the position across the grasp's approach."""
-    grasp = pin.XYZQUATToSE3(problem.grasp_pose)
-    approach = grasp.rotation @ np.asarray(problem.robot.spec.approach, dtype=float)
-    approach /= np.linalg.norm(approach)
+    approach = _grasp_approach(problem)
     projector = np.eye(3) - np.outer(approach, approach)
     return math.sqrt(
         max(0.0, float(np.max(np.linalg.eigvalsh(projector @ position_covariance @ projector))))
