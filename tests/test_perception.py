@@ -482,8 +482,9 @@ def test_a_fit_collapsed_onto_one_face_is_refused():
     the fit shrinks its height to the bound (the centre 79 mm too high with a 0.1 mm
     sigma): a DegenerateFit (a PerceptionError: the closed loop counts the view as not
     seen), naming the half-sizes. With them, held to a cylinder standing on the table in
-    their order, it is within 3 mm (matched in any order, the collapsed height took the
-    radius's 33 mm, 46 mm too high)."""
+    their order, it is within 3.5 mm (3.3 with the maximum-likelihood residual, 2.0 with
+    the Euclidean one; matched in any order, the collapsed height took the radius's 33 mm,
+    46 mm too high)."""
     from openup_ompl.exceptions import DegenerateFit, PerceptionError
     from openup_ompl.perception.camera import camera_of_scene
 
@@ -496,7 +497,7 @@ def test_a_fit_collapsed_onto_one_face_is_refused():
     assert isinstance(caught.value, PerceptionError)
     assert min(caught.value.sizes) <= 1.5 * caught.value.bound
     seen = perceive(problem, steep, rng=np.random.default_rng(1), options=EXACT)
-    assert np.linalg.norm(seen.pose[:3] - problem.object.pose[:3]) < 0.003
+    assert np.linalg.norm(seen.pose[:3] - problem.object.pose[:3]) < 0.0035
 
 
 def test_closed_loop_options_default_to_the_scene_camera():

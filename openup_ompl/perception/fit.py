@@ -34,6 +34,7 @@ from openup_ompl.perception.covariance import (
     measurement_rows,
     parameter_covariance,
 )
+from openup_ompl.perception.likelihood import solid_mahalanobis
 from openup_ompl.perception.silhouette import Silhouette
 from openup_ompl.perception.superquadric import (
     N_PARAMETERS,
@@ -117,13 +118,15 @@ def _batch_residuals(
     prior: SizePrior | None = None,
     solid: str | None = None,
     hidden: np.ndarray | None = None,
+    spread: np.ndarray | None = None,
 ) -> np.ndarray:
     """Residuals of ``k`` parameter sets at once, ``(k, n [+ m [+ 1]] [+ 3])`` (the
     points, the silhouette's samples, the resting on the support, the sizes' prior): one
     vectorised pass for a whole finite-difference Jacobian (12 sets cost about two single
     evaluations). A ``solid``'s points are measured by their exact distance to its faces
-    not ``hidden`` (:func:`_points_distance`)."""
-    distance = _points_distance(xs, points, reference, solid, hidden)
+    not ``hidden``, or their Mahalanobis distance under the noise's covariances ``spread``
+    (:func:`_points_distance`)."""
+    distance = _points_distance(xs, points, reference, solid, hidden, spread)
     if weights is not None:
         distance = distance * weights
     parts = [distance]
@@ -148,17 +151,24 @@ def _points_distance(
     reference: np.ndarray,
     solid: str | None,
     hidden: np.ndarray | None = None,
+    spread: np.ndarray | None = None,
 ) -> np.ndarray:
     """The points' signed distances [m] to ``k`` parameter sets' surfaces, ``(k, n)``: the
     superquadric's first-order one, or the exact one to the ``solid``'s faces not
     ``hidden`` (``(6,)``, :func:`~openup_ompl.perception.superquadric._hidden_faces`;
     held, not a function of the parameters: a fit free to turn a face past the grazing
-    limit would free its points)."""
-    local = (points[None] - xs[:, None, 5:8]) @ (reference @ _rotations(xs[:, 8:11]))
+    limit would free its points), Euclidean or, with the points' noise covariances
+    ``spread`` (``(n, 3, 3)``, world frame, scaled to a common sigma), Mahalanobis
+    (:func:`~openup_ompl.perception.likelihood.solid_mahalanobis`)."""
+    rotations = reference @ _rotations(xs[:, 8:11])
+    local = (points[None] - xs[:, None, 5:8]) @ rotations
     sizes, e1, e2 = xs[:, None, 0:3], xs[:, 3:4], xs[:, 4:5]
     if solid is None:
         return np.asarray(_distance(local, sizes, e1, e2))
-    return _solid_distance(local, sizes, solid, hidden)
+    if spread is None:
+        return _solid_distance(local, sizes, solid, hidden)
+    turned = np.einsum("kai,nab,kbj->knij", rotations, spread, rotations, optimize=True)
+    return solid_mahalanobis(local, sizes, solid, turned, hidden)
 
 
 _ORDERS = tuple(itertools.permutations(range(3)))
@@ -279,6 +289,7 @@ def fit_superquadric(
     noise: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
     size_prior: tuple[np.ndarray, float, tuple[tuple[int, int], ...]] | None = None,
     solid: str | None = None,
+    covariance: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
 ) -> SuperquadricFit:
     """Fit a superquadric to ``points`` [m] (world frame) by least squares.
 
@@ -305,6 +316,13 @@ def fit_superquadric(
             :data:`~openup_ompl.perception.superquadric.SOLIDS`): its exponents are held
             at the solid's and each point's residual is its exact distance to it; None:
             the superquadric free (a mesh's first guess).
+        covariance: ``covariance(points, normals) -> (n, 3, 3)`` [m^2], the sensor
+            noise's covariance (world frame, e.g.
+            :func:`~openup_ompl.perception.noise.noise_covariance`): a ``solid``'s points
+            are measured by their Mahalanobis distance to it under their covariance at the
+            best start's normals, scaled to the mean sigma along them (the
+            maximum-likelihood residual, :mod:`~openup_ompl.perception.likelihood`), in
+            place of ``noise``'s weights; None: the Euclidean distance.
 
     Raises:
         TooFewPoints: Fewer points than twice the 11 parameters (fewer than 11 leaves the
@@ -347,10 +365,14 @@ def fit_superquadric(
         for x0, reference in _starts(points, options, upright)
     ]
     first, reference = min(trials, key=lambda trial: float(trial[0].cost))
-    weights = None
-    if noise is not None:
-        # Weights from the best start's surface: its normals are already close enough.
-        sigma = noise(points, _world_normals(first.x, reference, points))
+    weights = noises = None
+    normals = _world_normals(first.x, reference, points)  # close enough to the fit's
+    if covariance is not None and solid is not None:
+        noises = covariance(points, normals)
+        along = float(np.mean(np.sqrt(np.einsum("ni,nij,nj->n", normals, noises, normals))))
+        noises = noises / along**2 if along > 0 else None  # in metres; none: no noise
+    if noises is None and noise is not None:
+        sigma = noise(points, normals)
         weights = float(np.mean(sigma)) / sigma
     prior = None
     if size_prior is not None:
@@ -361,7 +383,8 @@ def fit_superquadric(
         prior = SizePrior(half, spread, scale, tuple(ties), tie, solid == "cylinder")
     # Every start solved with the free space: the points alone may pick a wrong basin.
     budget = options.max_evaluations
-    finals = [(solve(t.x, r, budget, silhouette, weights, prior, solid), r) for t, r in trials]
+    how = (silhouette, weights, prior, solid)
+    finals = [(solve(t.x, r, budget, *how, None, noises), r) for t, r in trials]
     result, reference = min(finals, key=lambda final: float(final[0].cost))
     hidden = None
     if solid is not None and silhouette is not None:
@@ -371,9 +394,8 @@ def fit_superquadric(
         hidden = _hidden_faces(*box, silhouette.position, silhouette.max_incidence)[0]
         if solid == "box":
             hidden = hidden & ~_held_faces(sq.local(points), sq.sizes)
-        result = solve(result.x, reference, budget, silhouette, weights, prior, solid, hidden)
-    how = (silhouette, weights, prior, solid, hidden)
-    return _result(result.x, reference, points, how, options, evaluations)
+        result = solve(result.x, reference, budget, *how, hidden, noises)
+    return _result(result.x, reference, points, (*how, hidden, noises), options, evaluations)
 
 
 def _world_normals(x: np.ndarray, reference: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -404,7 +426,8 @@ def _result(
     evaluations: int,
 ) -> SuperquadricFit:
     """The fit at its optimum ``x`` (about ``reference``; ``fitted``: the free space,
-    weights, prior, solid and hidden faces it was fitted with), with its covariance."""
+    weights, prior, solid, hidden faces and covariances it was fitted with), with its
+    covariance (of the residuals as fitted: ``s^2`` is theirs)."""
     superquadric = _split(x, reference)
     # Re-linearise about the fitted orientation: the rotation block is then in its frame.
     x = x.copy()
@@ -419,6 +442,8 @@ def _result(
         jacobian[rows], residuals[rows], n, options.covariance
     )
     unweighted = residuals[:n] / weights if weights is not None else residuals[:n]
+    if fitted[5] is not None:  # Mahalanobis: report the Euclidean distances
+        unweighted = _points_distance(x[None], points, superquadric.rotation, *fitted[3:5])[0]
     return SuperquadricFit(
         superquadric=superquadric,
         covariance=covariance,
