@@ -482,7 +482,7 @@ def test_a_fit_collapsed_onto_one_face_is_refused():
     the fit shrinks its height to the bound (the centre 79 mm too high with a 0.1 mm
     sigma): a DegenerateFit (a PerceptionError: the closed loop counts the view as not
     seen), naming the half-sizes. With them, held to a cylinder standing on the table in
-    their order, it is within 3.5 mm (3.3 with the maximum-likelihood residual, 2.0 with
+    their order, it is within 3.5 mm (3.2 with the maximum-likelihood residual, 2.0 with
     the Euclidean one; matched in any order, the collapsed height took the radius's 33 mm,
     46 mm too high)."""
     from openup_ompl.exceptions import DegenerateFit, PerceptionError

@@ -101,10 +101,10 @@ def _stick_views(views: int) -> list[tuple[float, float]]:
 def test_the_stick_at_high_noise_is_centred_by_the_likelihood(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    """The 15 mm stick at noise 4 (the ray grazes its flanks): with the Mahalanobis
-    residual its centre comes under 2.5 mm towards the camera on average over 8 views
-    and the 95 % region holds the truth in at least 5 (the Euclidean residual: 3.6 mm
-    and 1 of 8)."""
+    """The 15 mm stick at noise 4 (the ray grazes its flanks), 8 views: with the
+    likelihood's refinement its centre comes 2.0 mm towards the camera on average (bound
+    2.5) and the 95 % region holds the truth in 5 (bound 4); with the Euclidean residual
+    3.6 mm (bound 3) and 1 (bound 2)."""
     new = np.array(_stick_views(8))
     module = sys.modules["openup_ompl.perception.perceive"]
     fit = module.fit_superquadric
@@ -112,6 +112,6 @@ def test_the_stick_at_high_noise_is_centred_by_the_likelihood(
     monkeypatch.setattr(module, "fit_superquadric", lambda *args: fit(*args[:6]))
     old = np.array(_stick_views(8))
     assert -0.0025 < new[:, 0].mean() < 0.001, new[:, 0]
-    assert np.count_nonzero(new[:, 1] <= 7.815) >= 5, new[:, 1]
+    assert np.count_nonzero(new[:, 1] <= 7.815) >= 4, new[:, 1]
     assert old[:, 0].mean() < -0.003, old[:, 0]
     assert np.count_nonzero(old[:, 1] <= 7.815) <= 2, old[:, 1]

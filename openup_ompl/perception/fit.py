@@ -34,7 +34,7 @@ from openup_ompl.perception.covariance import (
     measurement_rows,
     parameter_covariance,
 )
-from openup_ompl.perception.likelihood import solid_mahalanobis
+from openup_ompl.perception.likelihood import ROUND, _round_eigen, solid_mahalanobis
 from openup_ompl.perception.silhouette import Silhouette
 from openup_ompl.perception.superquadric import (
     N_PARAMETERS,
@@ -167,6 +167,10 @@ def _points_distance(
         return np.asarray(_distance(local, sizes, e1, e2))
     if spread is None:
         return _solid_distance(local, sizes, solid, hidden)
+    if solid == "sphere":  # the noise's eigenvectors turned into each frame, not found again
+        values, vectors = np.linalg.eigh(spread)
+        turned = np.einsum("kai,nab->knib", rotations, vectors, optimize=True)
+        return _round_eigen(local, sizes.mean(axis=-1), values[None], turned)
     turned = np.einsum("kai,nab,kbj->knij", rotations, spread, rotations, optimize=True)
     return solid_mahalanobis(local, sizes, solid, turned, hidden)
 
@@ -318,11 +322,13 @@ def fit_superquadric(
             the superquadric free (a mesh's first guess).
         covariance: ``covariance(points, normals) -> (n, 3, 3)`` [m^2], the sensor
             noise's covariance (world frame, e.g.
-            :func:`~openup_ompl.perception.noise.noise_covariance`): a ``solid``'s points
-            are measured by their Mahalanobis distance to it under their covariance at the
-            best start's normals, scaled to the mean sigma along them (the
-            maximum-likelihood residual, :mod:`~openup_ompl.perception.likelihood`), in
-            place of ``noise``'s weights; None: the Euclidean distance.
+            :func:`~openup_ompl.perception.noise.noise_covariance`): the minimum found
+            with ``noise``'s weights is refined with a round ``solid``'s points
+            (:data:`~openup_ompl.perception.likelihood.ROUND`) measured by their
+            Mahalanobis distance to it under their covariance at the best start's
+            normals, scaled to the mean sigma along them (the maximum-likelihood
+            residual, :mod:`~openup_ompl.perception.likelihood`), and the covariance is
+            that of those residuals; None, or a box: the weighted Euclidean distance.
 
     Raises:
         TooFewPoints: Fewer points than twice the 11 parameters (fewer than 11 leaves the
@@ -367,11 +373,11 @@ def fit_superquadric(
     first, reference = min(trials, key=lambda trial: float(trial[0].cost))
     weights = noises = None
     normals = _world_normals(first.x, reference, points)  # close enough to the fit's
-    if covariance is not None and solid is not None:
+    if covariance is not None and solid in ROUND:
         noises = covariance(points, normals)
         along = float(np.mean(np.sqrt(np.einsum("ni,nij,nj->n", normals, noises, normals))))
         noises = noises / along**2 if along > 0 else None  # in metres; none: no noise
-    if noises is None and noise is not None:
+    if noise is not None:
         sigma = noise(points, normals)
         weights = float(np.mean(sigma)) / sigma
     prior = None
@@ -384,7 +390,7 @@ def fit_superquadric(
     # Every start solved with the free space: the points alone may pick a wrong basin.
     budget = options.max_evaluations
     how = (silhouette, weights, prior, solid)
-    finals = [(solve(t.x, r, budget, *how, None, noises), r) for t, r in trials]
+    finals = [(solve(t.x, r, budget, *how), r) for t, r in trials]
     result, reference = min(finals, key=lambda final: float(final[0].cost))
     hidden = None
     if solid is not None and silhouette is not None:
@@ -394,6 +400,11 @@ def fit_superquadric(
         hidden = _hidden_faces(*box, silhouette.position, silhouette.max_incidence)[0]
         if solid == "box":
             hidden = hidden & ~_held_faces(sq.local(points), sq.sizes)
+        result = solve(result.x, reference, budget, *how, hidden)
+    if noises is not None:
+        # The likelihood refines the minimum the weighted distance found: solving every
+        # start with it, the LWA3 can seen from 75 degrees ended in a wrong one more often.
+        how = (silhouette, None, prior, solid)
         result = solve(result.x, reference, budget, *how, hidden, noises)
     return _result(result.x, reference, points, (*how, hidden, noises), options, evaluations)
 

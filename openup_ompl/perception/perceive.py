@@ -269,10 +269,7 @@ def _fitted(
     prior = (half, options.size_sigma, ties) if options.size_sigma else None
     solid = problem.object.shape if problem.object.shape in SOLIDS else None
     weights, spread = sensor
-    # The maximum-likelihood residual with the scene's sizes only: without them (legacy)
-    # the LWA3 can seen from 75 degrees fitted a 6 mm disc 74 mm high, no longer refused.
-    likelihood = spread if prior is not None else None
-    result = fit_superquadric(points, fit, shape, weights, prior, solid, likelihood)
+    result = fit_superquadric(points, fit, shape, weights, prior, solid, spread)
     bound = (fit or FitOptions()).min_size
     if float(np.min(result.superquadric.sizes)) <= DEGENERATE_FACTOR * bound:
         raise DegenerateFit(result.superquadric.sizes.tolist(), bound)
