@@ -391,15 +391,29 @@ def test_object_centred_in_an_obstacle_is_refused(
 
 
 def test_a_perceived_estimate_dipping_into_its_table_plans(tmp_path):
-    """``perceive`` then ``plan``: an estimate tilted enough to dip a corner of the can's
-    base 5.5 mm into the table (LWA3, noise 4, seed 2) loads and plans (a check of any
-    overlap beyond 2 mm refused it)."""
+    """``perceive`` then ``plan``: an estimate that sinks the can's base into the table (the
+    estimate of the LWA3's can at noise 4, tilted 0.05 rad more about the world's x axis and
+    5 mm lower, as a noisier fit may give) loads and plans (a check of any overlap beyond
+    2 mm refused it)."""
+    import re
+
+    import pinocchio as pin
+
     from openup_ompl.__main__ import main
 
     out = tmp_path / "p"
     scene = str(ROOT / "scenes" / "lwa3_sdh_can.toml")
     assert main(["perceive", scene, "--noise", "4", "--seed", "2", "--out", str(out)]) == 0
     perceived = out / "perceived.toml"
+    estimate = ou.load_scene(perceived).object
+    assert estimate is not None
+    placement = pin.XYZQUATToSE3(np.array(estimate.pose, dtype=float))
+    placement.rotation = pin.rpy.rpyToMatrix(0.05, 0.0, 0.0) @ placement.rotation
+    placement.translation = placement.translation - np.array([0.0, 0.0, 0.005])
+    shown = ", ".join(f"{v:.9f}" for v in pin.SE3ToXYZQUAT(placement))
+    head, tail = perceived.read_text().split("[object]", 1)
+    tail = re.sub(r"^pose = \[[^\]]*\]", f"pose = [{shown}]", tail, count=1, flags=re.M)
+    perceived.write_text(head + "[object]" + tail)
     problem = ou.load_scene(perceived)
     assert problem.object is not None
     table = next(shape for shape in problem.obstacles if shape.name == "table")

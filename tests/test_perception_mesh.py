@@ -80,3 +80,30 @@ def test_perceive_cli_writes_a_mesh_scene(tmp_path: Path) -> None:
         assert key in summary
     assert np.linalg.norm(np.subtract(summary["pose"][:3], summary["true_pose"][:3])) < 0.04
     assert ou.load_scene(tmp_path / "perceived.toml").object.shape == "mesh"  # type: ignore[union-attr]
+
+
+def test_the_expected_excess_over_a_round_hull_is_its_curvature_term() -> None:
+    """A point on a finely faceted 40 mm ball under isotropic noise of 2 mm lies outside it
+    by sigma^2 / r = 0.1 mm on average (the unscented transform's offset), on a face's
+    plane by 0 (a flat face has no curvature)."""
+    from openup_ompl.perception.noise import noise_covariance
+    from openup_ompl.perception.registration import _expected_offsets, _planes
+
+    k = np.arange(4000) + 0.5
+    polar, turn = np.arccos(1 - 2 * k / k.size), np.pi * (1 + 5**0.5) * k
+    ball = 0.04 * np.column_stack(
+        [np.sin(polar) * np.cos(turn), np.sin(polar) * np.sin(turn), np.cos(polar)]
+    )
+    point = np.array([[0.0, 0.0, 0.04]])
+    spread = np.eye(3)[None] * 0.002**2
+    offset = _expected_offsets(point, pin.SE3.Identity(), _planes(ball), spread)
+    assert offset[0] == pytest.approx(0.002**2 / 0.04, rel=0.1)
+    cube = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * 0.04
+    on_face = np.array([[0.0, 0.0, 0.04]])
+    assert _expected_offsets(on_face, pin.SE3.Identity(), _planes(cube), spread)[0] == (
+        pytest.approx(0.0, abs=1e-9)
+    )
+    # The sensor's covariance: lateral, lateral, axial in the camera's frame.
+    covariance = noise_covariance(np.zeros(3), np.eye(3), NoiseOptions(scale=1.0))
+    face_on = covariance(np.array([[0.0, 0.0, 1.0]]), np.array([[0.0, 0.0, -1.0]]))[0]
+    assert face_on[2, 2] > face_on[0, 0] == pytest.approx(face_on[1, 1])

@@ -6,6 +6,7 @@ covariance of its pose, and the rule that turns that covariance into the hand la
 from openup_ompl.perception.camera import CameraOptions, DepthCamera, DepthView
 from openup_ompl.perception.covariance import SuperquadricFit
 from openup_ompl.perception.fit import FitOptions, Silhouette, fit_superquadric
+from openup_ompl.perception.fusion import Fused, fuse
 from openup_ompl.perception.noise import NoiseOptions, PointCloud, kinect_sigmas, noisy_cloud
 from openup_ompl.perception.perceive import (
     Perception,
@@ -30,6 +31,7 @@ __all__ = [
     "DepthCamera",
     "DepthView",
     "FitOptions",
+    "Fused",
     "NoiseOptions",
     "Perception",
     "PointCloud",
@@ -41,6 +43,7 @@ __all__ = [
     "clearance_per_u",
     "estimated_pose",
     "fit_superquadric",
+    "fuse",
     "kinect_sigmas",
     "lateral_sigma",
     "noisy_cloud",

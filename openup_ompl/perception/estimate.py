@@ -11,7 +11,7 @@ from collections.abc import Callable
 import numpy as np
 import pinocchio as pin
 
-from openup_ompl.perception.covariance import SuperquadricFit
+from openup_ompl.perception.covariance import Outline, SuperquadricFit
 from openup_ompl.perception.nominal import Nominal, nominal_of
 from openup_ompl.perception.registration import register_hull
 from openup_ompl.perception.superquadric import ROTATION
@@ -35,6 +35,8 @@ def estimate(
     weights: Callable[[np.ndarray, np.ndarray], np.ndarray] | None,
     support: float | None,
     size_sigma: float = 0.0,
+    outline: Outline | None = None,
+    covariance: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The object's pose and its covariance: the superquadric's for a primitive, with a
     turn about a symmetry axis of the shape held (it moves no surface), or a mesh's hull
@@ -50,6 +52,10 @@ def estimate(
         size_sigma: How well the scene's dimensions are known [m] (see
             :meth:`~openup_ompl.perception.covariance.SuperquadricFit.pose_covariance`;
             0: the superquadric's sizes free).
+        outline: The view's edges, for a primitive's covariance (see
+            :meth:`~openup_ompl.perception.covariance.SuperquadricFit.pose_covariance`).
+        covariance: The sensor noise's covariance at each point, for a mesh's
+            registration (:func:`~openup_ompl.perception.registration.register_hull`).
 
     Returns:
         ``(pose, covariance)``: the pose ``[x, y, z, qx, qy, qz, qw]`` [m, unit
@@ -58,7 +64,7 @@ def estimate(
     """
     pose, fixed = _fitted_pose(fit, shape)
     if shape.shape != "mesh":
-        return pose, fit.pose_covariance(fixed, size_sigma, _size_groups(fixed))
+        return pose, fit.pose_covariance(fixed, size_sigma, _size_groups(fixed), outline)
     from openup_ompl.meshes import hull_points
 
     assert shape.file is not None
@@ -71,7 +77,8 @@ def estimate(
         flips += [np.asarray(pin.exp3(np.pi * axis)) for axis in np.eye(3)]
     starts = [pin.SE3(start.rotation @ flip, start.translation) for flip in flips]
     vertices = np.asarray(hull_points(shape.file, shape.scale or 1.0), dtype=float)
-    registered = register_hull(points, vertices, starts, nominal.symmetry_axes, weights, support)
+    axes = nominal.symmetry_axes
+    registered = register_hull(points, vertices, starts, axes, weights, support, covariance)
     placement = registered.placement
     if nominal.symmetry != "none":
         # The turn about the axis is not measured: keep the scene's (the grasp moves with it).

@@ -46,8 +46,7 @@ class PerceptionOptions:
         size_sigma: How well [m] the object's half-sizes are known (the scene names
             them): the fit pulls each half-size to the nearest nominal one with this
             standard deviation (:class:`~openup_ompl.perception.fit.SizePrior`), and the
-            pose's covariance holds the fitted shape and considers this error of each
-            half-size
+            pose's covariance estimates the half-sizes with the pose, this their prior
             (:meth:`~openup_ompl.perception.covariance.SuperquadricFit.pose_covariance`);
             0: the sizes free, in the fit and the covariance, as before.
         restarts: Fits of the view (the first on every point, the others on bootstrap

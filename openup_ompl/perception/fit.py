@@ -10,8 +10,10 @@ view they pull the centre away from the seen side by several times the noise; th
 
 ``scipy.optimize.least_squares`` (trust-region reflective, exponents and sizes bounded)
 is started from the cloud's principal axes, once with each principal axis as the
-superquadric's z axis, and the lowest cost wins: the cylinder is only representable with
-its axis along z, and a partial view's principal axes are not ordered by the object's.
+superquadric's z axis; each start is solved with the view's free space and the lowest cost
+wins: the cylinder is only representable with its axis along z, a partial view's principal
+axes are not ordered by the object's, and the points alone do not tell a box lying from
+one standing (the most promising start on them missed a drawer's box by 2-3 cm).
 """
 
 from __future__ import annotations
@@ -25,32 +27,29 @@ from typing import Any
 import numpy as np
 
 from openup_ompl._toml import is_integer, is_number
-from openup_ompl.exceptions import ConfigError, TooFewPoints
+from openup_ompl.exceptions import ConfigError
 from openup_ompl.perception.covariance import (
     COVARIANCES,
     SuperquadricFit,
     measurement_rows,
     parameter_covariance,
 )
+from openup_ompl.perception.silhouette import Silhouette
 from openup_ompl.perception.superquadric import (
     N_PARAMETERS,
-    _angles,
+    SOLIDS,
     _distance,
+    _held_faces,
+    _hidden_faces,
     _normals,
     _rotations,
+    _solid_distance,
     _split,
     _surface_local,
+    checked_points,
 )
 
 __all__ = ["FitOptions", "Silhouette", "fit_superquadric"]
-
-#: How far [m] a fitted surface may come before the depth its pixel measured (the
-#: sensor's noise and the pixel's footprint on a slanted surface: centimetres would
-#: still be caught).
-DEPTH_MARGIN = 0.01
-#: The least RMS spread [m] of a fitted cloud about its mean in its second direction:
-#: 0.1 mm, a hundredth of the sensor noise's size.
-MIN_SPREAD = 1e-4
 
 
 @dataclass(frozen=True)
@@ -64,9 +63,9 @@ class FitOptions:
         min_size: Lower bound of the half-sizes [m].
         max_size: Upper bound of the half-sizes [m].
         starts: Principal axes tried as the superquadric's z axis (1 to 3).
-        trial_evaluations: Residual evaluations of each start before the lowest-cost one
-            is solved to convergence.
-        max_evaluations: Residual evaluations of that solve.
+        trial_evaluations: Residual evaluations of each start on the points alone (the
+            lowest-cost one sets the weights), before each is solved to convergence.
+        max_evaluations: Residual evaluations of each start's solve.
         covariance: ``"classic"``: ``s^2 (J^T J)^-1``; ``"sandwich"``: ``(J^T J)^-1 J^T
             diag(r^2) J (J^T J)^-1 n / (n - 11)`` (White's estimator: the same when every
             residual has one variance, right when they differ, as the depth noise does
@@ -109,125 +108,6 @@ class FitOptions:
             raise ConfigError("fit.covariance", self.covariance, f"one of {COVARIANCES}")
 
 
-@dataclass(frozen=True)
-class Silhouette:
-    """Free space seen by the camera: where the object may not project.
-
-    A depth camera also sees past the object: a pixel that saw the table or the wall
-    behind says the object is not in front of it. Without this a partial view leaves the
-    unseen side free (a can's visible front half fits an ellipse reaching centimetres
-    behind it equally well). Each surface sample of the superquadric that projects onto
-    such a pixel adds a residual: its image distance to the allowed region (the object's
-    pixels and pixels of occluders in front of it) beyond one pixel (the object's edge lies
-    somewhere between its last pixel centre and the next), in metres at its depth.
-
-    The camera cannot see through the table the object stands on: a sample below the
-    table's top hides behind it, and a view from above let the fitted can grow through
-    the table, or float above it (the top face seen, the bottom hidden). With the
-    ``support``'s height each sample below it adds its depth below it, and one residual,
-    weighted as all the points together, holds the lowest sample on it: the object stands
-    on its support.
-
-    A ray that measured a surface also says the space before it is free: a sample nearer
-    the camera than the depth its pixel measured (on the object or an occluder), by more
-    than :data:`DEPTH_MARGIN`, adds the difference (an occluder's pixels otherwise leave
-    the fit free to grow towards the camera, through the occluder: README, Perception).
-
-    Attributes:
-        distance: ``(H, W)`` pixel distance to the allowed region (0 inside it).
-        position: Camera position [m], world frame.
-        rotation: Camera frame (x right, y down, z forward) in the world frame.
-        intrinsics: ``(fx, fy, cx, cy)`` [px].
-        samples: Surface sample angles (:func:`~openup_ompl.perception.superquadric._angles`).
-        support: Height [m, world z] of the surface the object stands on (None: unknown).
-        depth: ``(H, W)`` depth [m] measured at the allowed pixels (-inf elsewhere: no
-            bound); None: no depth bound.
-    """
-
-    distance: np.ndarray
-    position: np.ndarray
-    rotation: np.ndarray
-    intrinsics: tuple[float, float, float, float]
-    samples: np.ndarray
-    support: float | None = None
-    depth: np.ndarray | None = None
-
-    @classmethod
-    def from_view(
-        cls,
-        object_mask: np.ndarray,
-        occluder_mask: np.ndarray,
-        position: np.ndarray,
-        rotation: np.ndarray,
-        intrinsics: tuple[float, float, float, float],
-        samples: tuple[int, int] = (10, 20),
-        support: float | None = None,
-        depth: np.ndarray | None = None,
-    ) -> Silhouette:
-        """The free space of one view.
-
-        Args:
-            object_mask: ``(H, W)`` the object's pixels.
-            occluder_mask: ``(H, W)`` pixels whose hit is in front of the object (where it
-                may hide) or that measured nothing.
-            position, rotation: The camera's pose, world frame ([m]; ``(3, 3)``, world from
-                camera).
-            intrinsics: ``(fx, fy, cx, cy)`` [pixels].
-            samples: Numbers of latitudes and longitudes of the surface samples.
-            support: Height [m, world z] of the surface under the object, or ``None``.
-            depth: ``(H, W)`` measured depth [m] (NaN: none), or ``None``.
-        Returns:
-            Its pixel distances to the allowed region, camera, samples, support, depth bound.
-        """
-        from scipy.ndimage import distance_transform_edt
-
-        allowed = object_mask | occluder_mask
-        distance = distance_transform_edt(~allowed)
-        free = None
-        if depth is not None:
-            free = np.where(allowed & np.isfinite(depth), depth, -np.inf)
-        return cls(
-            np.asarray(distance, dtype=float),
-            position,
-            rotation,
-            intrinsics,
-            _angles(*samples),
-            support,
-            free,
-        )
-
-    def excess(self, world: np.ndarray) -> np.ndarray:
-        """Each world point's image distance beyond the allowed region, plus its depth
-        below the :attr:`support`.
-
-        Args:
-            world: Points [m], world frame, shape ``(..., 3)``.
-
-        Returns:
-            The excess [m] (image distance scaled to the point's depth), shape ``(...)``.
-        """
-        from scipy.ndimage import map_coordinates
-
-        fx, fy, cx, cy = self.intrinsics
-        shape = world.shape[:-1]
-        camera = (world.reshape(-1, 3) - self.position) @ self.rotation
-        z = np.maximum(camera[:, 2], 1e-3)
-        column = fx * camera[:, 0] / z + cx - 0.5
-        row = fy * camera[:, 1] / z + cy - 0.5
-        pixels = map_coordinates(self.distance, [row, column], order=1, mode="nearest")
-        excess = (np.maximum(pixels - 1.0, 0.0) * z / fx).reshape(shape)
-        if self.depth is not None:
-            height, width = self.depth.shape
-            r = np.clip(np.round(row).astype(int), 0, height - 1)
-            c = np.clip(np.round(column).astype(int), 0, width - 1)
-            inside = (row > -0.5) & (row < height - 0.5) & (column > -0.5) & (column < width - 0.5)
-            before = np.where(inside, self.depth[r, c] - DEPTH_MARGIN - camera[:, 2], 0.0)
-            excess = excess + np.maximum(before, 0.0).reshape(shape)
-        if self.support is None:
-            return excess
-        return excess + np.maximum(self.support - world[..., 2], 0.0)
-
-
 def _batch_residuals(
     xs: np.ndarray,
     points: np.ndarray,
@@ -235,19 +115,21 @@ def _batch_residuals(
     silhouette: Silhouette | None = None,
     weights: np.ndarray | None = None,
     prior: SizePrior | None = None,
+    solid: str | None = None,
+    hidden: np.ndarray | None = None,
 ) -> np.ndarray:
     """Residuals of ``k`` parameter sets at once, ``(k, n [+ m [+ 1]] [+ 3])`` (the
     points, the silhouette's samples, the resting on the support, the sizes' prior): one
     vectorised pass for a whole finite-difference Jacobian (12 sets cost about two single
-    evaluations)."""
-    rotations = reference @ _rotations(xs[:, 8:11])
-    local = (points[None] - xs[:, None, 5:8]) @ rotations
-    sizes, e1, e2 = xs[:, None, 0:3], xs[:, 3:4], xs[:, 4:5]
-    distance = _distance(local, sizes, e1, e2)
+    evaluations). A ``solid``'s points are measured by their exact distance to its faces
+    not ``hidden`` (:func:`_points_distance`)."""
+    distance = _points_distance(xs, points, reference, solid, hidden)
     if weights is not None:
         distance = distance * weights
     parts = [distance]
     if silhouette is not None:
+        rotations = reference @ _rotations(xs[:, 8:11])
+        sizes, e1, e2 = xs[:, None, 0:3], xs[:, 3:4], xs[:, 4:5]
         surface = _surface_local(sizes, e1, e2, silhouette.samples)
         world = surface @ rotations.transpose(0, 2, 1) + xs[:, None, 5:8]
         parts.append(silhouette.excess(world))
@@ -260,6 +142,25 @@ def _batch_residuals(
     return np.concatenate(parts, axis=1)
 
 
+def _points_distance(
+    xs: np.ndarray,
+    points: np.ndarray,
+    reference: np.ndarray,
+    solid: str | None,
+    hidden: np.ndarray | None = None,
+) -> np.ndarray:
+    """The points' signed distances [m] to ``k`` parameter sets' surfaces, ``(k, n)``: the
+    superquadric's first-order one, or the exact one to the ``solid``'s faces not
+    ``hidden`` (``(6,)``, :func:`~openup_ompl.perception.superquadric._hidden_faces`;
+    held, not a function of the parameters: a fit free to turn a face past the grazing
+    limit would free its points)."""
+    local = (points[None] - xs[:, None, 5:8]) @ (reference @ _rotations(xs[:, 8:11]))
+    sizes, e1, e2 = xs[:, None, 0:3], xs[:, 3:4], xs[:, 4:5]
+    if solid is None:
+        return np.asarray(_distance(local, sizes, e1, e2))
+    return _solid_distance(local, sizes, solid, hidden)
+
+
 _ORDERS = tuple(itertools.permutations(range(3)))
 
 
@@ -270,15 +171,28 @@ class SizePrior:
     as measurements of standard deviation ``sigma`` against points of standard deviation
     ``noise``.
 
+    The half-sizes of each pair in ``ties`` are held equal, as strongly as all the points
+    together (``tie``: the square root of their number), as the support is: a scene's
+    cylinder has a round section, its ball is round (left free, a can's partial view fits
+    an elliptical section about as well, its centre moved by millimetres).
+
     Attributes:
         half: The nominal half-extents [m].
         sigma: How well they are known [m].
         noise: The points' residuals' standard deviation [m] (the rows' scale).
+        ties: Pairs of the superquadric's half-sizes (indices) held equal.
+        tie: Weight of the ties' rows.
+        ordered: The half-sizes are the nominal ones in their order (a cylinder's axis is
+            the superquadric's z once its section is held round: matched freely, a fit
+            collapsed onto a can's top took its radius for its height).
     """
 
     half: np.ndarray
     sigma: float
     noise: float
+    ties: tuple[tuple[int, int], ...] = ()
+    tie: float = 1.0
+    ordered: bool = False
 
     def rows(self, sizes: np.ndarray) -> np.ndarray:
         """The half-sizes' gaps to the nominal ones, in the order that matches them best.
@@ -287,13 +201,16 @@ class SizePrior:
             sizes: Half-sizes [m], shape ``(k, 3)``.
 
         Returns:
-            Residuals [m], shape ``(k, 3)``, scaled by ``noise / sigma``.
+            Residuals [m], shape ``(k, 3 + len(ties))``: the gaps scaled by ``noise /
+            sigma``, then the tied half-sizes' differences by ``tie``.
         """
         half = np.asarray(self.half, dtype=float)
-        gaps = np.stack([sizes - half[list(order)] for order in _ORDERS])  # (6, k, 3)
+        orders = _ORDERS[:1] if self.ordered else _ORDERS
+        gaps = np.stack([sizes - half[list(order)] for order in orders])  # (6, k, 3)
         best = np.argmin(np.sum(gaps**2, axis=2), axis=0)
         gap = gaps[best, np.arange(sizes.shape[0])]
-        return np.asarray(gap * (self.noise / self.sigma))
+        tied = [self.tie * (sizes[:, i] - sizes[:, j]) for i, j in self.ties]
+        return np.column_stack([gap * (self.noise / self.sigma), *tied])
 
 
 def _residuals(x: np.ndarray, *args: Any) -> np.ndarray:
@@ -321,18 +238,32 @@ def _jacobian(x: np.ndarray, *args: Any) -> np.ndarray:
     return ((values[:N_PARAMETERS] - values[N_PARAMETERS:]) / (2 * steps[:, None])).T
 
 
-def _starts(points: np.ndarray, options: FitOptions) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Initial parameters and reference rotations from the cloud's principal axes."""
+def _starts(
+    points: np.ndarray, options: FitOptions, upright: bool = False
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Initial parameters and reference rotations from the cloud's principal axes; with
+    ``upright``, one more whose z is the world's vertical and x the cloud's widest
+    horizontal axis (a box standing on its support: a view of two of its faces, an L, has
+    its principal axes along the L's diagonal, and every fit from them ended tilted by
+    35-40 degrees on the study's thin plank)."""
     centre = points.mean(axis=0)
     _, axes = np.linalg.eigh(np.cov((points - centre).T))
     axes = axes[:, ::-1]  # largest spread first
-    starts = []
+    references = []
     for k in range(options.starts):
         z = axes[:, k]
         x, y = (axes[:, j] for j in range(3) if j != k)
         reference = np.column_stack([x, y, z])
         if np.linalg.det(reference) < 0:
             reference[:, 0] *= -1
+        references.append(reference)
+    if upright:
+        _, horizontal = np.linalg.eigh(np.cov((points - centre)[:, :2].T))
+        x = np.array([*horizontal[:, -1], 0.0])
+        vertical = np.array([0.0, 0.0, 1.0])
+        references.append(np.column_stack([x, np.cross(vertical, x), vertical]))
+    starts = []
+    for reference in references:
         local = (points - centre) @ reference
         half = np.clip(np.ptp(local, axis=0) / 2, 2 * options.min_size, options.max_size / 2)
         middle = centre + reference @ ((local.max(axis=0) + local.min(axis=0)) / 2)
@@ -346,7 +277,8 @@ def fit_superquadric(
     options: FitOptions | None = None,
     silhouette: Silhouette | None = None,
     noise: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
-    size_prior: tuple[np.ndarray, float] | None = None,
+    size_prior: tuple[np.ndarray, float, tuple[tuple[int, int], ...]] | None = None,
+    solid: str | None = None,
 ) -> SuperquadricFit:
     """Fit a superquadric to ``points`` [m] (world frame) by least squares.
 
@@ -365,16 +297,20 @@ def fit_superquadric(
         noise: ``noise(points, normals) -> sigma`` [m], the sensor noise's standard
             deviation along each unit normal (world frame), e.g.
             :func:`~openup_ompl.perception.noise.normal_sigma`; None: unweighted.
-        size_prior: The scene's half-extents [m] and how well they are known [m]: each
-            fitted half-size is pulled to the one it best matches (:class:`SizePrior`;
-            without it a fit at high noise may grow away from the camera behind its own
-            silhouette: README, Perception); None: the sizes free.
+        size_prior: The scene's half-extents [m], how well they are known [m] (each
+            fitted half-size is pulled to the one it best matches: without it a fit at
+            high noise may grow away from the camera behind its own silhouette) and the
+            pairs of half-sizes held equal (:class:`SizePrior`); None: the sizes free.
+        solid: The solid the scene names (a key of
+            :data:`~openup_ompl.perception.superquadric.SOLIDS`): its exponents are held
+            at the solid's and each point's residual is its exact distance to it; None:
+            the superquadric free (a mesh's first guess).
 
     Raises:
         TooFewPoints: Fewer points than twice the 11 parameters (fewer than 11 leaves the
             fit undetermined; a few more than 11 leave ``s^2`` meaningless).
         ConfigError: ``points`` not of shape ``(N, 3)``, or not finite, or at one place or
-            on one line.
+            on one line; an unknown ``solid``.
 
     Returns:
         The fit: the superquadric, its parameters' covariance and the residuals.
@@ -382,9 +318,8 @@ def fit_superquadric(
     from scipy.optimize import least_squares
 
     options = options or FitOptions()
-    points = _checked_points(points)
-    low = np.array([options.min_size] * 3 + [options.min_exponent] * 2 + [-np.inf] * 6)
-    high = np.array([options.max_size] * 3 + [options.max_exponent] * 2 + [np.inf] * 6)
+    points = checked_points(points)
+    low, high = _bounds(options, solid)
     evaluations = 0
 
     def solve(x0: np.ndarray, reference: np.ndarray, budget: int, free: Any, *extra: Any) -> Any:
@@ -404,49 +339,82 @@ def fit_superquadric(
         evaluations += int(result.nfev)
         return result
 
-    # Every start gets a few steps on the points alone; the most promising is solved to
-    # convergence, with the free space.
+    # A scene's box standing on its support (a face down): one start upright as well.
+    upright = solid == "box" and silhouette is not None and silhouette.support is not None
+    # A few steps on the points alone; the best start sets the weights and the prior's scale.
     trials = [
-        (solve(x0, reference, options.trial_evaluations, None), reference)
-        for x0, reference in _starts(points, options)
+        (solve(x0, reference, options.trial_evaluations, None, None, None, solid), reference)
+        for x0, reference in _starts(points, options, upright)
     ]
     first, reference = min(trials, key=lambda trial: float(trial[0].cost))
     weights = None
     if noise is not None:
         # Weights from the best start's surface: its normals are already close enough.
-        fitted = _split(first.x, reference)
-        local = fitted.local(points)
-        normals = _normals(local, fitted.sizes, *fitted.exponents) @ fitted.rotation.T
-        sigma = noise(points, normals)
+        sigma = noise(points, _world_normals(first.x, reference, points))
         weights = float(np.mean(sigma)) / sigma
     prior = None
     if size_prior is not None:
-        scale = _rms(first.fun[: len(points)])  # the points' spread about the best start
-        prior = SizePrior(np.asarray(size_prior[0], dtype=float), size_prior[1], scale)
-    result = solve(first.x, reference, options.max_evaluations, silhouette, weights, prior)
-    return _result(result.x, reference, points, silhouette, weights, prior, options, evaluations)
+        scale = float(np.sqrt(np.mean(first.fun[: len(points)] ** 2)))  # their spread
+        half, spread, ties = size_prior
+        tie = math.sqrt(len(points))
+        half = np.asarray(half, dtype=float)
+        prior = SizePrior(half, spread, scale, tuple(ties), tie, solid == "cylinder")
+    # Every start solved with the free space: the points alone may pick a wrong basin.
+    budget = options.max_evaluations
+    finals = [(solve(t.x, r, budget, silhouette, weights, prior, solid), r) for t, r in trials]
+    result, reference = min(finals, key=lambda final: float(final[0].cost))
+    hidden = None
+    if solid is not None and silhouette is not None:
+        # The faces the camera does not see, from the solved fit: its points measure none.
+        sq = _split(result.x, reference)
+        box = (sq.rotation[None], sq.position[None], sq.sizes[None])
+        hidden = _hidden_faces(*box, silhouette.position, silhouette.max_incidence)[0]
+        if solid == "box":
+            hidden = hidden & ~_held_faces(sq.local(points), sq.sizes)
+        result = solve(result.x, reference, budget, silhouette, weights, prior, solid, hidden)
+    how = (silhouette, weights, prior, solid, hidden)
+    return _result(result.x, reference, points, how, options, evaluations)
+
+
+def _world_normals(x: np.ndarray, reference: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """The unit normals (world frame) of the superquadric ``x`` at the points."""
+    sq = _split(x, reference)
+    return np.asarray(_normals(sq.local(points), sq.sizes, *sq.exponents) @ sq.rotation.T)
+
+
+def _bounds(options: FitOptions, solid: str | None) -> tuple[np.ndarray, np.ndarray]:
+    """The parameters' bounds; a ``solid``'s exponents held at its own (the bounds must
+    differ: by 1e-6)."""
+    low = np.array([options.min_size] * 3 + [options.min_exponent] * 2 + [-np.inf] * 6)
+    high = np.array([options.max_size] * 3 + [options.max_exponent] * 2 + [np.inf] * 6)
+    if solid is not None:
+        if solid not in SOLIDS:
+            raise ConfigError("solid", solid, f"None or one of {sorted(SOLIDS)}")
+        held = [options.min_exponent if e is None else e for e in SOLIDS[solid]]
+        low[3:5], high[3:5] = held, np.add(held, 1e-6)
+    return low, high
 
 
 def _result(
     x: np.ndarray,
     reference: np.ndarray,
     points: np.ndarray,
-    silhouette: Silhouette | None,
-    weights: np.ndarray | None,
-    prior: SizePrior | None,
+    fitted: tuple[Any, ...],
     options: FitOptions,
     evaluations: int,
 ) -> SuperquadricFit:
-    """The fit at its optimum ``x`` (about ``reference``), with its covariance."""
+    """The fit at its optimum ``x`` (about ``reference``; ``fitted``: the free space,
+    weights, prior, solid and hidden faces it was fitted with), with its covariance."""
     superquadric = _split(x, reference)
     # Re-linearise about the fitted orientation: the rotation block is then in its frame.
     x = x.copy()
     x[8:11] = 0.0
-    args = (points, superquadric.rotation, silhouette, weights, prior)
+    silhouette, weights, prior = fitted[:3]
+    args = (points, superquadric.rotation, *fitted)
     residuals = _residuals(x, *args)
     jacobian = _jacobian(x, *args)
     n = points.shape[0]
-    rows = measurement_rows(residuals, n, _free_space_rows(silhouette))
+    rows = measurement_rows(residuals, n, 0 if silhouette is None else len(silhouette.samples))
     covariance, unobservable = parameter_covariance(
         jacobian[rows], residuals[rows], n, options.covariance
     )
@@ -462,39 +430,5 @@ def _result(
         jacobian=jacobian[rows],
         residuals=residuals[rows],
         kind=options.covariance,
+        prior_rows=0 if prior is None else 3 + len(prior.ties),
     )
-
-
-def _checked_points(points: np.ndarray) -> np.ndarray:
-    """``points`` as an ``(N, 3)`` float array fit for the fit (see
-    :func:`fit_superquadric`'s ``Raises``)."""
-    points = np.asarray(points, dtype=float)
-    needed = 2 * N_PARAMETERS
-    if points.ndim != 2 or points.shape[1] != 3:
-        raise ConfigError("points", f"an array of shape {points.shape}", "(N, 3) rows [x, y, z]")
-    if points.shape[0] < needed:
-        raise TooFewPoints(int(points.shape[0]), needed)
-    if not np.all(np.isfinite(points)):
-        raise ConfigError("points", "non-finite values", "finite [x, y, z] rows [m]")
-    # Points at one place or on one line leave the surface undetermined, and the fit
-    # then finds a perfect one: a zero covariance, "certain" from no information.
-    spread = np.linalg.svd(points - points.mean(axis=0), compute_uv=False) / math.sqrt(
-        points.shape[0]
-    )
-    if spread[1] < MIN_SPREAD:
-        raise ConfigError(
-            "points",
-            f"{points.shape[0]} points at one place or on a line (spread {spread[1]:.2g} m)",
-            f"points spread over a surface, more than {MIN_SPREAD:g} m in two directions",
-        )
-    return points
-
-
-def _rms(values: np.ndarray) -> float:
-    return float(np.sqrt(np.mean(np.square(values)))) if values.size else 0.0
-
-
-def _free_space_rows(silhouette: Silhouette | None) -> int:
-    """How many residuals after the points are the free space's (:meth:`Silhouette.excess`
-    of each surface sample)."""
-    return 0 if silhouette is None else int(silhouette.samples.shape[0])

@@ -35,6 +35,7 @@ __all__ = [
     "NoiseOptions",
     "PointCloud",
     "kinect_sigmas",
+    "noise_covariance",
     "noisy_cloud",
     "normal_sigma",
 ]
@@ -173,6 +174,50 @@ def noisy_cloud(
     )
 
 
+def noise_covariance(
+    position: np.ndarray, rotation: np.ndarray, options: NoiseOptions | None = None
+) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    """The sensor noise's covariance at each measured point, for the fit's expected
+    distance (:func:`~openup_ompl.perception.fit.fit_superquadric`).
+
+    Returns ``covariance(points, normals)`` [m^2]: at each point (world frame) and unit
+    normal of the fitted surface, ``diag(sigma_L^2, sigma_L^2, sigma_z^2)`` in the camera
+    frame at the incidence between the camera's ray and the normal (capped at
+    ``max_incidence``), turned into the world frame; ``options.scale`` included.
+
+    Args:
+        position: The camera's position [m], world frame.
+        rotation: The camera's orientation (3 x 3, camera to world).
+        options: Noise scale and limits (default :class:`NoiseOptions`).
+
+    Returns:
+        The function ``covariance(points (n, 3) [m], normals (n, 3)) -> (n, 3, 3)`` [m^2].
+    """
+    options = options or NoiseOptions()
+    cap = math.radians(options.max_incidence)
+
+    def covariance(points: np.ndarray, normals: np.ndarray) -> np.ndarray:
+        depth, incidence, _ = _seen(points, normals, position, rotation, cap)
+        axial, lateral = _sigmas(depth, incidence, options)
+        variances = np.column_stack([lateral**2, lateral**2, axial**2])
+        return np.einsum("ij,nj,kj->nik", rotation, variances, rotation)
+
+    return covariance
+
+
+def _seen(
+    points: np.ndarray, normals: np.ndarray, position: np.ndarray, rotation: np.ndarray, cap: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each point's depth [m] in the camera, the incidence [rad] of the camera's ray on
+    its normal (capped at ``cap``), and the normals in the camera frame."""
+    camera = (points - position) @ rotation
+    depth = np.maximum(camera[:, 2], 1e-3)
+    rays = camera / np.linalg.norm(camera, axis=1, keepdims=True)
+    normal = normals @ rotation
+    incidence = np.minimum(np.arccos(np.clip(np.abs(np.sum(rays * normal, 1)), 0, 1)), cap)
+    return depth, incidence, normal
+
+
 def normal_sigma(
     position: np.ndarray, rotation: np.ndarray, options: NoiseOptions | None = None
 ) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
@@ -196,11 +241,7 @@ def normal_sigma(
     cap = math.radians(options.max_incidence)
 
     def sigma(points: np.ndarray, normals: np.ndarray) -> np.ndarray:
-        camera = (points - position) @ rotation
-        depth = np.maximum(camera[:, 2], 1e-3)
-        rays = camera / np.linalg.norm(camera, axis=1, keepdims=True)
-        normal = normals @ rotation
-        incidence = np.minimum(np.arccos(np.clip(np.abs(np.sum(rays * normal, 1)), 0, 1)), cap)
+        depth, incidence, normal = _seen(points, normals, position, rotation, cap)
         axial, lateral = _sigmas(depth, incidence, replace(options, scale=1.0))
         variance = (
             lateral**2 * (normal[:, 0] ** 2 + normal[:, 1] ** 2) + axial**2 * normal[:, 2] ** 2

@@ -31,7 +31,7 @@ from openup_ompl.perception.camera import (
     DepthView,
     camera_of_scene,
 )
-from openup_ompl.perception.covariance import SuperquadricFit
+from openup_ompl.perception.covariance import Outline, SuperquadricFit
 from openup_ompl.perception.estimate import estimate, estimated_pose
 from openup_ompl.perception.extrinsic import (
     CameraError,
@@ -40,8 +40,16 @@ from openup_ompl.perception.extrinsic import (
     extrinsic_covariance,
 )
 from openup_ompl.perception.fit import FitOptions, Silhouette, fit_superquadric
-from openup_ompl.perception.noise import NoiseOptions, PointCloud, noisy_cloud, normal_sigma
+from openup_ompl.perception.noise import (
+    NoiseOptions,
+    PointCloud,
+    kinect_sigmas,
+    noise_covariance,
+    noisy_cloud,
+    normal_sigma,
+)
 from openup_ompl.perception.nominal import nominal_of
+from openup_ompl.perception.superquadric import SOLIDS
 from openup_ompl.perception.uncertainty import u_from_covariance
 from openup_ompl.perception.view import checked_view, occluded_outline, silhouette_of
 from openup_ompl.scene import Problem
@@ -173,7 +181,9 @@ def perceive(
         silhouette: Use the view's free space in the fit
             (:class:`~openup_ompl.perception.fit.Silhouette`), and the surface under the
             object as its floor (it stands on the table, not through it).
-        weighted: Weight the fit by the sensor's noise model (:func:`normal_sigma`).
+        weighted: Weight the fit by the sensor's noise model (:func:`normal_sigma`); a
+            mesh's registration also takes each point's distance less its expected excess
+            under that noise (:func:`~openup_ompl.perception.noise.noise_covariance`).
         options: The camera's calibration errors (drawn from ``rng`` after the sensor
             noise, applied to the cloud and added to the covariance) and the estimator's
             bootstrap refits (their spread of ``u`` is reported; drawn from ``rng`` last);
@@ -208,14 +218,21 @@ def perceive(
     cloud, view, support = _as_believed(cloud, view, error, support)
     shape = silhouette_of(view, noise, cam.options, support) if silhouette else None
     weights = normal_sigma(view.position, view.rotation, noise) if weighted else None
-    first = _fitted(problem, cloud.points, fit, shape, weights, support, view, options)
+    spread = noise_covariance(view.position, view.rotation, noise) if weighted else None
+    depth = np.median((cloud.points - view.position) @ view.rotation[:, 2], keepdims=True)
+    lateral = float(kinect_sigmas(depth, np.zeros(1), noise)[1][0])
+    focal = cam.options.intrinsics()[0]
+    outline = Outline(cloud.points, view.position, focal, lateral, noise.max_incidence)
+    sensor = (weights, spread)
+    first = _fitted(problem, cloud.points, fit, shape, sensor, support, view, options, outline)
     result, pose, covariance, u = first
     fits = [u]
     for _ in range(options.restarts - 1):
         # A bootstrap resample of the points: the spread of u is the fit's own instability.
         sample = cloud.points[rng.integers(0, cloud.points.shape[0], cloud.points.shape[0])]
         try:
-            fits.append(_fitted(problem, sample, fit, shape, weights, support, view, options)[3])
+            again = _fitted(problem, sample, fit, shape, sensor, support, view, options, outline)
+            fits.append(again[3])
         except PerceptionError:
             continue  # a resample that collapses says nothing of the view's u
     return Perception(
@@ -236,23 +253,30 @@ def _fitted(
     points: np.ndarray,
     fit: FitOptions | None,
     shape: Silhouette | None,
-    weights: Callable[[np.ndarray, np.ndarray], np.ndarray] | None,
+    sensor: tuple[Callable[..., np.ndarray] | None, Callable[..., np.ndarray] | None],
     support: float | None,
     view: DepthView,
     options: PerceptionOptions,
+    outline: Outline,
 ) -> tuple[SuperquadricFit, np.ndarray, np.ndarray, float]:
-    """One fit of ``points``: the superquadric, the object's pose, its ``(6, 6)``
-    covariance (the fit's, the calibration errors', no turn about a symmetry axis) and
-    ``u``."""
+    """One fit of ``points`` (``sensor``: the noise's sigma along a normal and its
+    covariance, or None): the superquadric, the object's pose, its ``(6, 6)`` covariance
+    (the fit's with the view's ``outline``, the calibration errors', no turn about a
+    symmetry axis) and ``u``."""
     assert problem.object is not None
-    prior = (nominal_of(problem.object).half, options.size_sigma) if options.size_sigma else None
-    result = fit_superquadric(points, fit, shape, weights, prior)
+    ties = {"cylinder": ((0, 1),), "sphere": ((0, 1), (1, 2))}.get(problem.object.shape, ())
+    half = nominal_of(problem.object).half
+    prior = (half, options.size_sigma, ties) if options.size_sigma else None
+    solid = problem.object.shape if problem.object.shape in SOLIDS else None
+    weights, spread = sensor
+    result = fit_superquadric(points, fit, shape, weights, prior, solid)
     bound = (fit or FitOptions()).min_size
     if float(np.min(result.superquadric.sizes)) <= DEGENERATE_FACTOR * bound:
         raise DegenerateFit(result.superquadric.sizes.tolist(), bound)
     assert problem.object is not None
+    outline = dataclasses.replace(outline, points=points)
     pose, covariance = estimate(
-        result, problem.object, points, weights, support, options.size_sigma
+        result, problem.object, points, weights, support, options.size_sigma, outline, spread
     )
     covariance = covariance + extrinsic_covariance(options, view.position, view.rotation, pose[:3])
     rotation = pin.XYZQUATToSE3(pose).rotation

@@ -66,16 +66,52 @@ def _residuals(
     vertices: np.ndarray,
     weights: np.ndarray | None,
     support: float | None,
+    offsets: np.ndarray | None = None,
 ) -> np.ndarray:
     rotation, position = _moved(x, start)
-    local = (points - position) @ rotation
-    distance = (local @ planes[:, :3].T - planes[:, 3]).max(axis=1)
+    distance = _hull_distance(points, rotation, position, planes)
+    if offsets is not None:
+        distance = distance - offsets
     if weights is not None:
         distance = distance * weights
     if support is None:
         return distance
     lowest = float((vertices @ rotation.T)[:, 2].min() + position[2])
     return np.append(distance, (lowest - support) * math.sqrt(points.shape[0]))
+
+
+def _hull_distance(
+    points: np.ndarray, rotation: np.ndarray, position: np.ndarray, planes: np.ndarray
+) -> np.ndarray:
+    """The world points' signed distances [m] to the hull placed at ``rotation``,
+    ``position`` (exact inside and on the faces, a lower bound beyond an edge)."""
+    return np.asarray(_hull_distances(points, rotation, position, planes).max(axis=1))
+
+
+def _hull_distances(
+    points: np.ndarray, rotation: np.ndarray, position: np.ndarray, planes: np.ndarray
+) -> np.ndarray:
+    """Each world point's signed distance [m] to each face plane of the placed hull."""
+    return np.asarray(((points - position) @ rotation) @ planes[:, :3].T - planes[:, 3])
+
+
+def _expected_offsets(
+    points: np.ndarray, placement: pin.SE3, planes: np.ndarray, covariances: np.ndarray
+) -> np.ndarray:
+    """Each point's expected distance to the placed hull under the sensor noise less its
+    distance, ``E[d(p + n)] - d(p)`` [m], ``n ~ N(0, Sigma_i)``, by the unscented transform
+    (the six points ``p +- sqrt(3)`` times each principal axis of ``Sigma_i``, equally
+    weighted: exact for a quadratic ``d``). The distance to a convex hull is convex: a
+    noisy point lies outside it on average (by ``tr(H Sigma) / 2`` on a smooth surface of
+    curvature ``H``), and least squares on ``d`` moved the rigid bottle towards the camera
+    by 1.0 mm at noise 4 (0.35 at noise 2) against a sigma of 0.4."""
+    values, vectors = np.linalg.eigh(covariances)
+    axes = vectors * np.sqrt(3.0 * np.maximum(values, 0.0))[:, None, :]
+    steps = np.concatenate([axes, -axes], axis=2).transpose(0, 2, 1)  # (n, 6, 3)
+    shifted = (points[:, None, :] + steps).reshape(-1, 3)
+    rotation, position = placement.rotation, placement.translation
+    spread = _hull_distance(shifted, rotation, position, planes).reshape(-1, 6).mean(axis=1)
+    return np.asarray(spread - _hull_distance(points, rotation, position, planes))
 
 
 def _jacobian(x: np.ndarray, *args: object) -> np.ndarray:
@@ -97,6 +133,7 @@ def register_hull(
     symmetry_axes: Callable[[np.ndarray], np.ndarray],
     noise: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
     support: float | None = None,
+    covariance: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
 ) -> Registration:
     """Register the hull of ``vertices`` (mesh frame [m]) onto ``points`` (world [m]).
 
@@ -109,6 +146,10 @@ def register_hull(
         noise: ``noise(points, normals) -> sigma`` [m] for weights (as the superquadric
             fit's); None: unweighted.
         support: Height [m] of the surface the object stands on (None: unknown).
+        covariance: ``covariance(points, normals) -> (n, 3, 3)`` [m^2], the sensor noise's
+            covariance (world frame; :func:`~openup_ompl.perception.noise.noise_covariance`):
+            the pose is refined once more with each point's distance less its expected
+            excess under the noise (:func:`_expected_offsets`); None: as they are.
 
     Returns:
         The best start's registered pose, with its covariance.
@@ -126,17 +167,20 @@ def register_hull(
     result, start = best
     rotation, position = _moved(result.x, start)
     placement = pin.SE3(rotation, position)
-    weights = None
+    weights = offsets = None
+    face = np.argmax(_hull_distances(points, rotation, position, planes), axis=1)
+    normals = planes[face, :3] @ rotation.T  # world frame
     if noise is not None:
-        local = (points - position) @ rotation
-        face = np.argmax(local @ planes[:, :3].T - planes[:, 3], axis=1)
-        sigma = noise(points, planes[face, :3] @ rotation.T)
+        sigma = noise(points, normals)
         weights = float(np.mean(sigma)) / sigma
-        args = (placement, points, planes, vertices, weights, support)
+    if covariance is not None:
+        offsets = _expected_offsets(points, placement, planes, covariance(points, normals))
+    if weights is not None or offsets is not None:
+        args = (placement, points, planes, vertices, weights, support, offsets)
         refined = least_squares(_residuals, np.zeros(6), args=args, method="lm", max_nfev=400)
         rotation, position = _moved(refined.x, placement)
         placement = pin.SE3(rotation, position)
-    args = (placement, points, planes, vertices, weights, support)
+    args = (placement, points, planes, vertices, weights, support, offsets)
     residuals = _residuals(np.zeros(6), *args)
     jacobian = _jacobian(np.zeros(6), *args)
     n = points.shape[0]
@@ -150,11 +194,11 @@ def register_hull(
     basis[3:, 3:] = vectors[:, values > 0.5]
     reduced = jacobian @ basis
     information = reduced.T @ reduced
-    covariance = basis @ np.linalg.pinv(information, rcond=1e-12) @ basis.T * variance
+    spread = basis @ np.linalg.pinv(information, rcond=1e-12) @ basis.T * variance
     unweighted = residuals[:n] / weights if weights is not None else residuals[:n]
     return Registration(
         placement,
-        covariance,
+        spread,
         float(np.sqrt(unweighted @ unweighted / max(n - 6, 1))),
         float(0.5 * residuals @ residuals),
     )

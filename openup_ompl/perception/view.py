@@ -50,6 +50,7 @@ def silhouette_of(
         camera.intrinsics(),
         support=support,
         depth=np.where(valid, view.depth, np.nan).reshape(shape),
+        max_incidence=noise.max_incidence,
     )
 
 
