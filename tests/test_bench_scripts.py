@@ -180,3 +180,14 @@ def test_closed_loop_tables_joins_seed_ranges_and_refuses_a_shared_view(tmp_path
     assert "discordant 0 / 2" in result.stdout
     shared = _run("closed_loop_tables.py", str(a), str(a), "--out", str(tmp_path / "x"))
     assert shared.returncode != 0 and "a.json" in shared.stderr
+
+
+def test_perception_every_scene_reports_each_view_and_the_check() -> None:
+    """The every-scene check perceives a shipped scene with the defaults and states its
+    verdict on the last line."""
+    result = _run("perception_every_scene.py", "--seeds", "1", "--only", "scenes/panda_can")
+    assert result.returncode == 0, result.stderr
+    rows = [line for line in result.stdout.splitlines() if line.startswith("| `")]
+    assert [row.split("`")[1] for row in rows] == ["scenes/panda_can.toml"]
+    assert "estimated" in rows[0]
+    assert result.stdout.rstrip().endswith("every scene estimated or refused in one line: True")
