@@ -146,3 +146,48 @@ def test_bench_coupling_checks_every_robot(tmp_path: Path) -> None:
         for state_set in entry["sets"].values():
             assert state_set["states"] == 40
             assert all(t > 0 for t in state_set["median_s_per_state"].values())
+
+
+def test_closed_loop_tables_joins_seed_ranges_and_refuses_a_shared_view(tmp_path: Path) -> None:
+    """Two runs' trials join into one table whose counts are their sums, and a view that
+    both runs hold is refused rather than counted twice."""
+
+    def run(seeds: range, successes: dict[str, bool]) -> list[dict[str, object]]:
+        return [
+            {
+                "noise": 1.0,
+                "distance": 0.6,
+                "seed": seed,
+                "policy": policy,
+                "success": ok,
+                "u": 0.5,
+                "error_mm": 2.0,
+                "seen": True,
+                "planned": True,
+            }  # fmt: skip
+            for seed in seeds
+            for policy, ok in successes.items()
+        ]
+
+    a, b = tmp_path / "a.json", tmp_path / "b.json"
+    a.write_text(json.dumps(run(range(1, 4), {"0": True, "covariance": True})))
+    b.write_text(json.dumps(run(range(4, 6), {"0": False, "covariance": True})))
+    result = _run("closed_loop_tables.py", str(a), str(b), "--out", str(tmp_path / "out"))
+    assert result.returncode == 0, result.stderr
+    rows = (tmp_path / "out" / "closed_loop.csv").read_text().splitlines()
+    by_policy = {line.split(",")[0]: line.split(",") for line in rows[1:]}
+    assert by_policy["0"][3:5] == ["5", "3"] and by_policy["covariance"][3:5] == ["5", "5"]
+    assert "discordant 0 / 2" in result.stdout
+    shared = _run("closed_loop_tables.py", str(a), str(a), "--out", str(tmp_path / "x"))
+    assert shared.returncode != 0 and "a.json" in shared.stderr
+
+
+def test_perception_every_scene_reports_each_view_and_the_check() -> None:
+    """The every-scene check perceives a shipped scene with the defaults and states its
+    verdict on the last line."""
+    result = _run("perception_every_scene.py", "--seeds", "1", "--only", "scenes/panda_can")
+    assert result.returncode == 0, result.stderr
+    rows = [line for line in result.stdout.splitlines() if line.startswith("| `")]
+    assert [row.split("`")[1] for row in rows] == ["scenes/panda_can.toml"]
+    assert "estimated" in rows[0]
+    assert result.stdout.rstrip().endswith("every scene estimated or refused in one line: True")

@@ -7,6 +7,7 @@ import argparse
 import sys
 from collections.abc import Sequence
 from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -23,6 +24,7 @@ __all__ = [
     "perceive_command",
     "perception_options",
     "scene_camera",
+    "write_closed_loop",
 ]
 
 
@@ -209,15 +211,11 @@ def closed_loop_command(args: argparse.Namespace) -> int:
     Raises:
         ConfigError: A bad scene or option.
     """
-    import json
-
     from openup_ompl.perception.closed_loop import (
         ClosedLoopOptions,
         closed_loop,
         finished_trials,
         kinematic_judge,
-        summarize,
-        write_csv,
     )
     from openup_ompl.robustness import check_scene, default_robustness_scene
 
@@ -255,34 +253,71 @@ def closed_loop_command(args: argparse.Namespace) -> int:
         if not records:
             print("openup-ompl: interrupted before any trial ended", file=sys.stderr)
             return 130
-    rows = summarize(records)
-    args.out.mkdir(parents=True, exist_ok=True)
-    csv_path = write_csv(rows, args.out / "closed_loop.csv")
-    trials = args.out / "closed_loop_trials.json"
-    trials.write_text(json.dumps(records, indent=1, default=str) + "\n")
-    for row in rows:
-        mean_u = "none" if row["mean_u"] is None else f"{row['mean_u']:.3f}"
-        unseen = f", {row['not_seen']} not seen" if row["not_seen"] else ""
-        print(
-            f"{row['policy']:>10}  noise {row['noise']:<4g} distance {row['distance']:<4g}"
-            f" {row['successes']}/{row['trials']} (mean u {mean_u}{unseen})"
-        )
-    print(f"table written to {csv_path}; every trial in {trials}")
+    title = (
+        f"closed loop, {problem.robot.name}: perceive, plan at the estimate,"
+        f" execute ({args.execute})"
+    )
+    write_closed_loop(records, args.out, title)
     if interrupted:
         views = len(records) // len(options.policies)
         print(
             f"openup-ompl: interrupted: the {views} views that ended are written",
             file=sys.stderr,
         )
+    return 130 if interrupted else 0
 
+
+def write_closed_loop(records: list[dict[str, Any]], out: Path, title: str = "") -> None:
+    """Write a closed loop's tables and figure into ``out`` and print them: the per-cell
+    table with Wilson 95 % intervals (``closed_loop.csv``), every trial
+    (``closed_loop_trials.json``), every policy against the covariance rule (or the first
+    policy) with the exact McNemar test (``closed_loop_pairs.csv``) and the figure
+    (``closed_loop.png``, when matplotlib is installed).
+
+    Args:
+        records: The trials' records (:func:`~openup_ompl.perception.closed_loop.closed_loop`;
+            several runs' records may be joined, e.g. seed ranges run in parallel).
+        out: The output directory (created).
+        title: The figure's title.
+    """
+    import json
+
+    from openup_ompl.perception.closed_loop import summarize, write_csv
+    from openup_ompl.perception.closed_loop_pairs import (
+        POOLED,
+        compare_policies,
+        default_reference,
+        write_pairs_csv,
+    )
+
+    rows = summarize(records)
+    out.mkdir(parents=True, exist_ok=True)
+    csv_path = write_csv(rows, out / "closed_loop.csv")
+    trials = out / "closed_loop_trials.json"
+    trials.write_text(json.dumps(records, indent=1, default=str) + "\n")
+    for row in rows:
+        mean_u = "none" if row["mean_u"] is None else f"{row['mean_u']:.3f}"
+        unseen = f", {row['not_seen']} not seen" if row["not_seen"] else ""
+        print(
+            f"{row['policy']:>10}  noise {row['noise']:<4g} distance {row['distance']:<4g}"
+            f" {row['successes']}/{row['trials']}"
+            f" [{100 * row['ci_low']:.0f}, {100 * row['ci_high']:.0f}] %"
+            f" (mean u {mean_u}{unseen})"
+        )
+    reference = default_reference([str(r["policy"]) for r in records])
+    pairs = compare_policies(records, reference)
+    pairs_path = write_pairs_csv(pairs, out / "closed_loop_pairs.csv")
+    for pair in (p for p in pairs if p["noise"] == POOLED):
+        print(
+            f"{pair['policy']:>10} vs {reference}, all views: {pair['policy_successes']} vs"
+            f" {pair['reference_successes']} of {pair['views']}, discordant"
+            f" {pair['policy_only']} / {pair['reference_only']}, exact McNemar"
+            f" p = {pair['p_value']:.3g}"
+        )
+    print(f"table written to {csv_path}; every trial in {trials}; pairs in {pairs_path}")
     try:
         from openup_ompl.perception.figure import plot_closed_loop
 
-        title = (
-            f"closed loop, {problem.robot.name}: perceive, plan at the estimate,"
-            f" execute ({args.execute})"
-        )
-        print(f"plot written to {plot_closed_loop(rows, args.out / 'closed_loop.png', title)}")
+        print(f"plot written to {plot_closed_loop(rows, out / 'closed_loop.png', title)}")
     except MissingExtra as missing:
         print(f"no plot: {missing}", file=sys.stderr)
-    return 130 if interrupted else 0

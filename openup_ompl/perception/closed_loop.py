@@ -36,6 +36,7 @@ from openup_ompl.perception.perceive import at_estimate, perceive
 from openup_ompl.planning import check_planner, check_time_limit
 from openup_ompl.robustness import check_seeds, execute
 from openup_ompl.scene import Problem, Shape
+from openup_ompl.study.stats import wilson_interval
 
 if TYPE_CHECKING:
     from openup_ompl.plan import Plan
@@ -62,6 +63,8 @@ CSV_COLUMNS = (
     "trials",
     "successes",
     "success_rate",
+    "ci_low",
+    "ci_high",
     "mean_u",
     "mean_error_mm",
     "planning_failures",
@@ -333,10 +336,10 @@ def _mean(values: Iterable[float | None]) -> float | None:
 
 
 def summarize(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
-    """One row per (policy, noise, distance) with the :data:`CSV_COLUMNS`: ``mean_u`` and
-    ``mean_error_mm`` over the trials that have one (``None`` if none has), planning
-    failures among the views that saw the object, and the views that did not
-    (``not_seen``).
+    """One row per (policy, noise, distance) with the :data:`CSV_COLUMNS`: the success
+    rate's Wilson 95 % interval (``ci_low``, ``ci_high``), ``mean_u`` and ``mean_error_mm``
+    over the trials that have one (``None`` if none has), planning failures among the
+    views that saw the object, and the views that did not (``not_seen``).
 
     Args:
         records: The trials' records (:func:`closed_loop`).
@@ -351,6 +354,7 @@ def summarize(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     rows = []
     for (policy, noise, distance), group in cells.items():
         successes = sum(bool(r["success"]) for r in group)
+        low, high = wilson_interval(successes, len(group))
         rows.append(
             {
                 "policy": policy,
@@ -359,6 +363,8 @@ def summarize(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
                 "trials": len(group),
                 "successes": successes,
                 "success_rate": successes / len(group),
+                "ci_low": low,
+                "ci_high": high,
                 "mean_u": _mean(r["u"] for r in group),
                 "mean_error_mm": _mean(r["error_mm"] for r in group),
                 "planning_failures": sum(r.get("seen", True) and not r["planned"] for r in group),
@@ -392,6 +398,8 @@ def write_csv(rows: Sequence[dict[str, Any]], path: Path) -> Path:
                 {
                     **row,
                     "success_rate": _decimals(row["success_rate"], 4),
+                    "ci_low": _decimals(row["ci_low"], 4),
+                    "ci_high": _decimals(row["ci_high"], 4),
                     "mean_u": _decimals(row["mean_u"], 4),
                     "mean_error_mm": _decimals(row["mean_error_mm"], 3),
                 }
@@ -412,7 +420,7 @@ def read_csv(path: Path) -> list[dict[str, Any]]:
     with path.open(newline="") as handle:
         rows = list(csv.DictReader(handle))
     ints = ("trials", "successes", "planning_failures", "not_seen")
-    floats = ("noise", "distance", "success_rate", "mean_u", "mean_error_mm")
+    floats = ("noise", "distance", "success_rate", "ci_low", "ci_high", "mean_u", "mean_error_mm")
 
     def number(key: str, value: str) -> Any:
         if key in ints:

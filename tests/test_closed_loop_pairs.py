@@ -1,0 +1,92 @@
+"""The closed loop's paired comparisons and the Wilson intervals of its table."""
+
+from __future__ import annotations
+
+import csv
+
+import pytest
+
+from openup_ompl.exceptions import ConfigError
+from openup_ompl.perception.closed_loop import summarize
+from openup_ompl.perception.closed_loop_pairs import (
+    POOLED,
+    compare_policies,
+    default_reference,
+    write_pairs_csv,
+)
+from openup_ompl.study.stats import mcnemar_exact, wilson_interval
+
+
+def _records(verdicts: dict[tuple[float, int], dict[str, bool]]) -> list[dict]:
+    """Closed-loop records from {(noise, seed): {policy: success}} at one distance."""
+    return [
+        {
+            "noise": noise,
+            "distance": 0.6,
+            "seed": seed,
+            "policy": policy,
+            "success": ok,
+            "u": 0.0,
+            "error_mm": 1.0,
+            "seen": True,
+            "planned": True,
+        }  # fmt: skip
+        for (noise, seed), by_policy in verdicts.items()
+        for policy, ok in by_policy.items()
+    ]
+
+
+VERDICTS = {
+    (1.0, 1): {"0": True, "covariance": True},
+    (1.0, 2): {"0": False, "covariance": True},
+    (1.0, 3): {"0": False, "covariance": True},
+    (2.0, 1): {"0": True, "covariance": False},
+    (2.0, 2): {"0": False, "covariance": False},
+}
+
+
+def test_pairs_count_the_discordant_views_per_cell_and_pooled():
+    """Per cell and pooled, the discordant views are counted each way and the p-value is
+    the exact McNemar test's on them."""
+    rows = compare_policies(_records(VERDICTS), "covariance")
+    by_noise = {row["noise"]: row for row in rows}
+    assert set(by_noise) == {1.0, 2.0, POOLED}
+    assert (by_noise[1.0]["policy_only"], by_noise[1.0]["reference_only"]) == (0, 2)
+    assert (by_noise[2.0]["policy_only"], by_noise[2.0]["reference_only"]) == (1, 0)
+    pooled = by_noise[POOLED]
+    assert pooled["views"] == 5
+    assert (pooled["policy_successes"], pooled["reference_successes"]) == (2, 3)
+    assert pooled["p_value"] == pytest.approx(mcnemar_exact(1, 2))
+
+
+def test_pairs_skip_a_view_one_policy_did_not_finish():
+    """A view judged for one policy only (an interrupted run) is not a pair."""
+    verdicts = {**VERDICTS, (2.0, 3): {"0": True}}
+    pooled = [r for r in compare_policies(_records(verdicts)) if r["noise"] == POOLED]
+    assert pooled[0]["views"] == 5 and pooled[0]["policy_successes"] == 2
+
+
+def test_the_reference_must_have_run():
+    """A reference policy the run did not have is refused, naming it."""
+    with pytest.raises(ConfigError, match="'adaptive'"):
+        compare_policies(_records(VERDICTS), "adaptive")
+    assert default_reference(["0", "0.3"]) == "0"
+    assert default_reference(["0", "covariance"]) == "covariance"
+    with pytest.raises(ConfigError, match="policies"):
+        default_reference([])
+
+
+def test_the_table_carries_each_rates_wilson_interval(tmp_path):
+    """Every row's interval is the Wilson interval of its own count, and the pairs CSV
+    keeps the counts it was computed from."""
+    records = _records(VERDICTS)
+    for row in summarize(records):
+        assert (row["ci_low"], row["ci_high"]) == pytest.approx(
+            wilson_interval(row["successes"], row["trials"])
+        )
+        assert row["ci_low"] <= row["success_rate"] <= row["ci_high"]
+    path = write_pairs_csv(compare_policies(records), tmp_path / "pairs.csv")
+    with path.open(newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    assert [r["noise"] for r in rows] == ["1.0", "2.0", POOLED]
+    assert rows[-1]["policy_only"] == "1" and rows[-1]["reference_only"] == "2"
