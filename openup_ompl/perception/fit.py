@@ -371,15 +371,8 @@ def fit_superquadric(
         for x0, reference in _starts(points, options, upright)
     ]
     first, reference = min(trials, key=lambda trial: float(trial[0].cost))
-    weights = noises = None
     normals = _world_normals(first.x, reference, points)  # close enough to the fit's
-    if covariance is not None and solid in ROUND:
-        noises = covariance(points, normals)
-        along = float(np.mean(np.sqrt(np.einsum("ni,nij,nj->n", normals, noises, normals))))
-        noises = noises / along**2 if along > 0 else None  # in metres; none: no noise
-    if noise is not None:
-        sigma = noise(points, normals)
-        weights = float(np.mean(sigma)) / sigma
+    weights, noises = _sensor(points, normals, noise, covariance if solid in ROUND else None)
     prior = None
     if size_prior is not None:
         scale = float(np.sqrt(np.mean(first.fun[: len(points)] ** 2)))  # their spread
@@ -407,6 +400,26 @@ def fit_superquadric(
         how = (silhouette, None, prior, solid)
         result = solve(result.x, reference, budget, *how, hidden, noises)
     return _result(result.x, reference, points, (*how, hidden, noises), options, evaluations)
+
+
+def _sensor(
+    points: np.ndarray,
+    normals: np.ndarray,
+    noise: Callable[[np.ndarray, np.ndarray], np.ndarray] | None,
+    covariance: Callable[[np.ndarray, np.ndarray], np.ndarray] | None,
+) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The points' weights (their mean sigma along the ``normals`` over each one's) and
+    their noise covariances scaled to that mean (the likelihood's residuals then read in
+    metres; None without a ``covariance``, or with a zero one: no noise)."""
+    weights = noises = None
+    if noise is not None:
+        sigma = noise(points, normals)
+        weights = float(np.mean(sigma)) / sigma
+    if covariance is not None:
+        noises = covariance(points, normals)
+        along = float(np.mean(np.sqrt(np.einsum("ni,nij,nj->n", normals, noises, normals))))
+        noises = noises / along**2 if along > 0 else None
+    return weights, noises
 
 
 def _world_normals(x: np.ndarray, reference: np.ndarray, points: np.ndarray) -> np.ndarray:
