@@ -31,7 +31,13 @@ from typing import Any
 import numpy as np
 
 from openup_ompl.exceptions import ConfigError, InvalidProblem, PlanningFailed
-from openup_ompl.executor import SEED_LIMIT, Task, check_generator_seed, settings_digest
+from openup_ompl.executor import (
+    SEED_LIMIT,
+    Task,
+    check_generator_seed,
+    reseed_ompl,
+    settings_digest,
+)
 from openup_ompl.planning import check_planner, check_time_limit
 from openup_ompl.scene import Problem
 from openup_ompl.study.errors import ErrorSource, believe, parse_error
@@ -126,19 +132,6 @@ def trial_seeds(
     return np.random.default_rng(instance), np.random.default_rng(error_stream), plan_seed
 
 
-def _reseed_ompl(seed: int) -> None:
-    """Reseed OMPL's process-wide generator (its complaint that sampling has started is
-    silenced: every plan reseeds it, so a plan's draws depend on its seed alone)."""
-    from ompl import util as ompl_util
-
-    from openup_ompl.executor import seed_ompl
-
-    level = ompl_util.getLogLevel()
-    ompl_util.setLogLevel(ompl_util.LOG_NONE)
-    seed_ompl(seed)
-    ompl_util.setLogLevel(level)
-
-
 def _execute(
     believed: Problem, truth: Problem, u: float, plan_seed: int, planner: str, time_limit: float
 ) -> dict[str, Any]:
@@ -146,7 +139,7 @@ def _execute(
     from openup_ompl.physics.sweep import physics_judge
     from openup_ompl.planning import GraspPlanningSetup, PlanningOptions
 
-    _reseed_ompl(plan_seed)
+    reseed_ompl(plan_seed)
     options = PlanningOptions(u=u, planner=planner, time_limit=time_limit, simplify=True)
     try:
         setup = GraspPlanningSetup(believed, options)
