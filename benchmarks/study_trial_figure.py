@@ -7,17 +7,17 @@ study's judge executes it (:func:`~openup_ompl.physics.sweep.physics_judge`: the
 object in the world, ``PhysicsOptions(early_end=True)``), here keeping the frames. The
 rebuilt verdicts must equal the committed shard's, or the script stops.
 
-The judge ends a rollout early (``early_end``) only in the hold, once the object lies at
-rest out of the hand: the frames then stop there, and the figure needs none after the
-lift. ``--full`` runs to the end instead (the cause must still match the shard's).
+The judge ends a rollout early (``early_end``: at an obstacle's first touch, or in the
+hold once the object rests out of the hand), and its frames stop there; ``--full`` runs
+to the end instead (then the cause, not the verdict's numbers, must match the shard's).
 
 The figure has one row per policy: the hand where the palm is as near the grasp (``d``)
 as at the earliest first touch during a reach, at the end of the reach, closed, and at
 the top of the lift (one view; the believed stick's axis dashed). Printed per policy:
-the first touch (link, ``d``), the aperture there (thumb tip to the middle of the finger
-tips), the height on the stick it touched, the hand's closest pass by the believed and
-the true stick before it, the stick's motion and tilt after the reach, the squeeze and
-the lift, and the believed and true positions.
+the first touch (link, ``d``), the aperture (thumb tip to the middle of the finger tips)
+and the palm's offset from the grasp there, the height on the stick it touched, the
+fingers' closest pass by the believed and the true stick before it, the stick's motion
+and tilt after the reach, the squeeze and the lift, the believed and true positions.
 
 Run (the study's seed-2 LWA3-SDH perceived set; seconds per trial)::
 
@@ -65,8 +65,8 @@ class Replay:
         policy, u: The policy's name and its ``u``.
         record: The rollout's execution record (with frames).
         shard: The committed shard's result of this policy.
-        believed: The believed object (the plan's).
-        truth: The true object (the world's).
+        believed, truth: The believed object (the plan's) and the true one (the world's).
+        grasp: The planned grasp's position [m] (at the belief).
     """
 
     policy: str
@@ -75,6 +75,7 @@ class Replay:
     shard: dict[str, Any]
     believed: Shape
     truth: Shape
+    grasp: np.ndarray
 
 
 def shard_trial(shards: Path, family: str, error: str, trial: int) -> dict[str, Any]:
@@ -135,20 +136,26 @@ def _last(phases: list[str], names: tuple[str, ...]) -> int | None:
     return indices[-1] if indices else None
 
 
-def aperture(truth: Problem, names: list[str], q: list[float]) -> float:
-    """The thumb tip's distance [m] to the middle of the two finger tips at frame ``q``."""
+def _full(model: pin.Model, names: list[str], q: Any) -> np.ndarray:
+    """Pinocchio's configuration of a frame's joint values ``q`` (joints ``names``)."""
+    full = pin.neutral(model)
+    full[[model.joints[model.getJointId(n)].idx_q for n in names]] = q
+    return full
+
+
+def hand_at(truth: Problem, names: list[str], q: list[float], grasp: np.ndarray) -> Any:
+    """At frame ``q``: the thumb tip's distance [m] to the middle of the two finger tips,
+    and the palm's position [m] from the grasp's (world axes)."""
     model = truth.robot.model
     data = model.createData()
-    full = pin.neutral(model)
-    for name, value in zip(names, q, strict=True):
-        full[model.joints[model.getJointId(name)].idx_q] = value
-    pin.framesForwardKinematics(model, data, full)
+    pin.framesForwardKinematics(model, data, _full(model, names, q))
+    palm = np.asarray(data.oMf[truth.robot.palm_frame_id].translation) - grasp
 
     def tip(frame: str) -> np.ndarray:
         return np.asarray(data.oMf[model.getFrameId(frame)].translation)
 
     fingers = (tip(FINGER_TIPS[0]) + tip(FINGER_TIPS[1])) / 2
-    return float(np.linalg.norm(tip(THUMB_TIP) - fingers))
+    return float(np.linalg.norm(tip(THUMB_TIP) - fingers)), palm
 
 
 def touch_height(truth: Problem, names: list[str], q: list[float], pose: np.ndarray,
@@ -160,11 +167,8 @@ def touch_height(truth: Problem, names: list[str], q: list[float], pose: np.ndar
     robot = truth.robot
     model, geometry = robot.model, robot.collision_model
     data = model.createData()
-    full = pin.neutral(model)
-    for name, value in zip(names, q, strict=True):
-        full[model.joints[model.getJointId(name)].idx_q] = value
     placements = geometry.createData()
-    pin.forwardKinematics(model, data, full)
+    pin.forwardKinematics(model, data, _full(model, names, q))
     pin.updateGeometryPlacements(model, data, geometry, placements)
     assert truth.object is not None
     stick = dataclasses.replace(truth.object, pose=np.asarray(pose))
@@ -197,14 +201,11 @@ def clearances(truth: Problem, names: list[str], rows: np.ndarray,
     model, geometry = robot.model, robot.collision_model
     data, placements = model.createData(), geometry.createData()
     hand = [i for i, m in enumerate(moved_by(model, geometry, robot.hand_joints)) if m]
-    columns = [model.joints[model.getJointId(n)].idx_q for n in names]
     targets = [(s.geometry(), coal.Transform3s(s.placement.rotation, s.placement.translation))
                for s in sticks]  # fmt: skip
     out = np.full((len(rows), len(sticks)), np.inf)
-    full = pin.neutral(model)
     for k, row in enumerate(rows):
-        full[columns] = row
-        pin.forwardKinematics(model, data, full)
+        pin.forwardKinematics(model, data, _full(model, names, row))
         pin.updateGeometryPlacements(model, data, geometry, placements)
         for i in hand:
             g, placed_at = geometry.geometryObjects[i], placements.oMg[i]
@@ -217,9 +218,8 @@ def clearances(truth: Problem, names: list[str], rows: np.ndarray,
 
 
 def approach_clearance(item: Replay, truth: Problem) -> dict[str, float]:
-    """The hand's closest pass [mm] by the believed stick and by the true one (at its
-    start pose) over the reach, up to the first touch: the plan keeps the hand clear of
-    the believed stick (the object collides like an obstacle); the true one is elsewhere."""
+    """The fingers' closest pass [mm] by the believed stick and by the true one (at its
+    start pose) over the reach, up to the first touch (the palm is not counted)."""
     frames = item.record.frames
     assert frames is not None
     phases = frames["phase"]
@@ -265,7 +265,9 @@ def measure(item: Replay, truth: Problem) -> dict[str, Any]:
     }
     if first is not None:
         k = min(len(phases) - 1, int(first["time_s"] / period))
-        out["aperture_at_touch_mm"] = 1e3 * aperture(truth, frames["joint_names"], frames["q"][k])
+        width, palm = hand_at(truth, frames["joint_names"], frames["q"][k], item.grasp)
+        out["aperture_at_touch_mm"] = 1e3 * width
+        out["palm_from_grasp_mm"] = (1e3 * palm).round(0).tolist()
         height, gap = touch_height(truth, frames["joint_names"], frames["q"][k], poses[k],
                                    first["link"])  # fmt: skip
         out["touch_height_mm"] = 1e3 * height
@@ -329,19 +331,19 @@ def run(args: argparse.Namespace, trial: int) -> tuple[Problem, list[Replay]]:
             sys.exit(
                 f"trial {trial}, policy {policy}: the rebuilt verdict differs from the shard's"
             )
-        replays.append(Replay(policy, u, record, result, belief.believed.object, truth.object))
+        grasp = belief.believed.grasp.translation
+        replays.append(
+            Replay(policy, u, record, result, belief.believed.object, truth.object, grasp)
+        )
     return truth, replays
 
 
 def _palm_d(scene: Any, model: pin.Model, names: list[str], q: np.ndarray) -> np.ndarray:
     """Algorithm 1's ``d`` (palm distance to the grasp over that at the start) per frame."""
     data = model.createData()
-    columns = [model.joints[model.getJointId(n)].idx_q for n in names]
-    full = np.tile(pin.neutral(model), (len(q), 1))
-    full[:, columns] = q
     palms = []
-    for row in full:
-        pin.framesForwardKinematics(model, data, row)
+    for row in q:
+        pin.framesForwardKinematics(model, data, _full(model, names, row))
         palms.append(np.array(data.oMf[scene.palm_frame_id].translation))
     goal = scene.grasp.translation
     distance = np.linalg.norm(np.array(palms) - goal, axis=1)
