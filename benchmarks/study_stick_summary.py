@@ -15,8 +15,8 @@ import statistics
 from pathlib import Path
 from typing import Any
 
-#: Bins [mm] of the hand's closest pass by the believed stick before its first touch.
-BINS = ((0.0, 5.0), (5.0, 10.0), (10.0, 20.0), (20.0, float("inf")))
+#: Bins [mm] of the fingers' closest pass by the believed stick before the first touch.
+BINS = ((-float("inf"), 5.0), (5.0, 10.0), (10.0, 20.0), (20.0, float("inf")))
 
 
 def summary(rows: list[dict[str, Any]]) -> list[str]:
@@ -43,8 +43,15 @@ def summary(rows: list[dict[str, Any]]) -> list[str]:
     for low, high in BINS:
         inside = [r for r in passes if low <= r["believed_clearance_mm"] < high]
         failures = sum(r["cause"] is not None for r in inside)
-        lines.append(f"  closest pass by the believed stick {low:g}-{high:g} mm: {len(inside)}"
-                     f" trials, {failures} failed")  # fmt: skip
+        span = (
+            f"under {high:g}"
+            if low < 0
+            else f"{low:g} or more"
+            if high > 1e9
+            else f"{low:g}-{high:g}"
+        )
+        lines.append(f"  closest pass by the believed stick {span} mm: {len(inside)} trials,"
+                     f" {failures} failed")  # fmt: skip
     for name, group in (("held", [r for r in passes if r["cause"] is None]),
                         ("failed", [r for r in passes if r["cause"] is not None])):  # fmt: skip
         if group:
