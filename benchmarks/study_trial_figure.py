@@ -5,9 +5,7 @@ instance, belief and plan seed; each plan at the belief with the study's planner
 OMPL reseeded before it), and each policy's plan is executed against the truth as the
 study's judge executes it (:func:`~openup_ompl.physics.sweep.physics_judge`: the true
 object in the world, ``PhysicsOptions(early_end=True)``), here keeping the frames. The
-rebuilt verdicts must equal the committed shard's, or the script stops.
-
-The judge ends a rollout early (``early_end``: at an obstacle's first touch, or in the
+rebuilt verdicts must equal the committed shard's, or the script stops. The judge ends a rollout early (``early_end``: at an obstacle's first touch, or in the
 hold once the object rests out of the hand), and its frames stop there; ``--full`` runs
 to the end instead (then the cause, not the verdict's numbers, must match the shard's).
 
@@ -41,6 +39,7 @@ import numpy as np
 import pinocchio as pin
 
 from openup_ompl.exceptions import InvalidProblem, PlanningFailed
+from openup_ompl.executor import reseed_ompl
 from openup_ompl.physics.options import PhysicsOptions
 from openup_ompl.physics.record import ExecutionRecord
 from openup_ompl.physics.sweep import physics_trial
@@ -48,7 +47,7 @@ from openup_ompl.scene import Problem, Shape
 from openup_ompl.study.errors import Belief, believe, parse_error
 from openup_ompl.study.families import instance_problem, parse_families, template_scene
 from openup_ompl.study.policies import FALLBACK_U, policy_u
-from openup_ompl.study.run import _reseed_ompl, trial_seeds
+from openup_ompl.study.run import trial_seeds
 
 ROOT = Path(__file__).resolve().parent.parent
 SHARDS = ROOT / "benchmarks" / "results" / "study_lwa3_sdh_perceived" / "shards"
@@ -113,7 +112,7 @@ def replay(
     from openup_ompl.planning import GraspPlanningSetup, PlanningOptions
 
     assert belief.believed is not None and truth.object is not None
-    _reseed_ompl(plan_seed)
+    reseed_ompl(plan_seed)
     options = PlanningOptions(u=u, planner=args.planner, time_limit=args.time, simplify=True)
     try:
         setup = GraspPlanningSetup(belief.believed, options)
