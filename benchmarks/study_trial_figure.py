@@ -5,9 +5,10 @@ instance, belief and plan seed; each plan at the belief with the study's planner
 OMPL reseeded before it), and each policy's plan is executed against the truth as the
 study's judge executes it (:func:`~openup_ompl.physics.sweep.physics_judge`: the true
 object in the world, ``PhysicsOptions(early_end=True)``), here keeping the frames. The
-rebuilt verdicts must equal the committed shard's, or the script stops. The judge ends a rollout early (``early_end``: at an obstacle's first touch, or in the
-hold once the object rests out of the hand), and its frames stop there; ``--full`` runs
-to the end instead (then the cause, not the verdict's numbers, must match the shard's).
+rebuilt verdicts must equal the committed shard's, or the script stops. The judge ends a
+rollout early (``early_end``: at an obstacle's first touch, or in the hold once the object
+rests out of the hand), and its frames stop there; ``--full`` runs to the end instead
+(then the cause, not the verdict's numbers, must match the shard's).
 
 The figure has one row per policy: the hand where the palm is as near the grasp (``d``)
 as at the earliest first touch during a reach, at the end of the reach, closed, and at
