@@ -123,12 +123,12 @@ def _batch_residuals(
     vectorised pass for a whole finite-difference Jacobian (12 sets cost about two single
     evaluations). A ``solid``'s points are measured by their exact distance to its faces
     not ``hidden`` (:func:`_points_distance`)."""
-    distance = _points_distance(xs, points, reference, solid, hidden)
+    rotations = reference @ _rotations(xs[:, 8:11])
+    distance = _points_distance(xs, points, rotations, solid, hidden)
     if weights is not None:
         distance = distance * weights
     parts = [distance]
     if silhouette is not None:
-        rotations = reference @ _rotations(xs[:, 8:11])
         sizes, e1, e2 = xs[:, None, 0:3], xs[:, 3:4], xs[:, 4:5]
         surface = _surface_local(sizes, e1, e2, silhouette.samples)
         world = surface @ rotations.transpose(0, 2, 1) + xs[:, None, 5:8]
@@ -145,16 +145,16 @@ def _batch_residuals(
 def _points_distance(
     xs: np.ndarray,
     points: np.ndarray,
-    reference: np.ndarray,
+    rotations: np.ndarray,
     solid: str | None,
     hidden: np.ndarray | None = None,
 ) -> np.ndarray:
-    """The points' signed distances [m] to ``k`` parameter sets' surfaces, ``(k, n)``: the
-    superquadric's first-order one, or the exact one to the ``solid``'s faces not
-    ``hidden`` (``(6,)``, :func:`~openup_ompl.perception.superquadric._hidden_faces`;
+    """The points' signed distances [m] to ``k`` parameter sets' surfaces (``rotations``:
+    their ``(k, 3, 3)`` frames in the world), ``(k, n)``: the superquadric's first-order
+    one, or the exact one to the ``solid``'s faces not ``hidden`` (``(6,)``, :func:`~openup_ompl.perception.superquadric._hidden_faces`;
     held, not a function of the parameters: a fit free to turn a face past the grazing
     limit would free its points)."""
-    local = (points[None] - xs[:, None, 5:8]) @ (reference @ _rotations(xs[:, 8:11]))
+    local = (points[None] - xs[:, None, 5:8]) @ rotations
     sizes, e1, e2 = xs[:, None, 0:3], xs[:, 3:4], xs[:, 4:5]
     if solid is None:
         return np.asarray(_distance(local, sizes, e1, e2))
