@@ -40,7 +40,6 @@ import numpy as np
 import pinocchio as pin
 
 from openup_ompl.exceptions import InvalidProblem, PlanningFailed
-from openup_ompl.executor import reseed_ompl
 from openup_ompl.physics.options import PhysicsOptions
 from openup_ompl.physics.record import ExecutionRecord
 from openup_ompl.physics.sweep import physics_trial
@@ -48,7 +47,7 @@ from openup_ompl.scene import Problem, Shape
 from openup_ompl.study.errors import Belief, believe, parse_error
 from openup_ompl.study.families import instance_problem, parse_families, template_scene
 from openup_ompl.study.policies import FALLBACK_U, policy_u
-from openup_ompl.study.run import trial_seeds
+from openup_ompl.study.run import plan_at_belief, trial_seeds
 
 ROOT = Path(__file__).resolve().parent.parent
 SHARDS = ROOT / "benchmarks" / "results" / "study_lwa3_sdh_perceived" / "shards"
@@ -106,18 +105,14 @@ def replay(
     u: float,
     args: argparse.Namespace,
 ) -> ExecutionRecord | None:
-    """Plan at the belief as the study's ``_execute`` does, then run the judge's rollout
+    """Plan at the belief as the study does (:func:`plan_at_belief`), then run the judge's rollout
     (:func:`~openup_ompl.physics.sweep.physics_judge`) with its frames kept; ``None`` if
     the plan failed."""
     from openup_ompl.physics.rollout import Rollout
-    from openup_ompl.planning import GraspPlanningSetup, PlanningOptions
 
     assert belief.believed is not None and truth.object is not None
-    reseed_ompl(plan_seed)
-    options = PlanningOptions(u=u, planner=args.planner, time_limit=args.time, simplify=True)
     try:
-        setup = GraspPlanningSetup(belief.believed, options)
-        plan = setup.solve(seed=plan_seed)
+        _, plan = plan_at_belief(belief.believed, u, plan_seed, args.planner, args.time)
     except (PlanningFailed, InvalidProblem):
         return None
     true = Shape.from_table(truth.object.to_table(), "truth object", is_object=True)
