@@ -151,9 +151,9 @@ def _points_distance(
 ) -> np.ndarray:
     """The points' signed distances [m] to ``k`` parameter sets' surfaces (``rotations``:
     their ``(k, 3, 3)`` frames in the world), ``(k, n)``: the superquadric's first-order
-    one, or the exact one to the ``solid``'s faces not ``hidden`` (``(6,)``, :func:`~openup_ompl.perception.superquadric._hidden_faces`;
-    held, not a function of the parameters: a fit free to turn a face past the grazing
-    limit would free its points)."""
+    one, or the exact one to the ``solid``'s faces not ``hidden`` (``(6,)``,
+    :func:`~openup_ompl.perception.superquadric._hidden_faces`; held, not a function of the
+    parameters: a fit free to turn a face past the grazing limit would free its points)."""
     local = (points[None] - xs[:, None, 5:8]) @ rotations
     sizes, e1, e2 = xs[:, None, 0:3], xs[:, 3:4], xs[:, 4:5]
     if solid is None:
