@@ -46,6 +46,7 @@ __all__ = [
     "Task",
     "load_records",
     "run_task_process",
+    "reseed_ompl",
     "run_tasks",
     "seed_ompl",
     "selfcheck_task",
@@ -147,6 +148,26 @@ def seed_ompl(seed: int) -> None:
     from ompl import util as ompl_util
 
     ompl_util.RNG.setSeed(max(int(seed), 1))
+
+
+def reseed_ompl(seed: int) -> None:
+    """Restart OMPL's process-wide seed generator in a process that has already sampled,
+    so that the OMPL objects made next (a plan's planner, samplers and path simplifier)
+    draw as they would in a fresh process seeded with ``seed``: a plan then depends on its
+    own seed, not on the plans made before it in the process. OMPL's complaint that
+    sampling has started (it assumes objects made before the call) is silenced.
+
+    Args:
+        seed: The seed, an integer in ``[0, 2^31)``.
+    """
+    from ompl import util as ompl_util
+
+    level = ompl_util.getLogLevel()
+    ompl_util.setLogLevel(ompl_util.LOG_NONE)
+    try:
+        seed_ompl(seed)
+    finally:
+        ompl_util.setLogLevel(level)
 
 
 @dataclass(frozen=True)

@@ -191,3 +191,25 @@ def test_perception_every_scene_reports_each_view_and_the_check() -> None:
     assert [row.split("`")[1] for row in rows] == ["scenes/panda_can.toml"]
     assert "estimated" in rows[0]
     assert result.stdout.rstrip().endswith("every scene estimated or refused in one line: True")
+
+
+def test_study_trial_figure_replays_the_committed_verdicts(tmp_path: Path) -> None:
+    """A committed study trial rebuilt and replayed gives the shard's verdicts (the script
+    refuses otherwise), and a changed shard verdict is refused."""
+    out, measured = tmp_path / "trial.png", tmp_path / "trial.json"
+    args = ("--trial", "18", "--mesh-dir", str(tmp_path / "meshes"))
+    result = _run("study_trial_figure.py", *args, "--out", str(out), "--json", str(measured))
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert out.stat().st_size > 0
+    rows = {row["u"]: row for row in json.loads(measured.read_text())}
+    assert rows[0.3]["cause"] is None and rows[1.0]["cause"] == "fell"
+    assert rows[1.0]["first_touch"]["phase"] == "reach"
+    shards = tmp_path / "shards"
+    shards.mkdir()
+    source = ROOT / "benchmarks/results/study_lwa3_sdh_perceived/shards"
+    name = next(source.glob("lwa3_sdh-thin-perceived-t10-20-*.json")).name
+    data = json.loads((source / name).read_text())
+    data["trials"][8]["results"]["1"]["cause"] = "no contact"
+    (shards / name).write_text(json.dumps(data))
+    changed = _run("study_trial_figure.py", *args, "--shards", str(shards))
+    assert changed.returncode != 0 and "differs from the shard" in changed.stderr

@@ -90,3 +90,78 @@ def test_the_table_carries_each_rates_wilson_interval(tmp_path):
         rows = list(csv.DictReader(handle))
     assert [r["noise"] for r in rows] == ["1.0", "2.0", POOLED]
     assert rows[-1]["policy_only"] == "1" and rows[-1]["reference_only"] == "2"
+
+
+def test_a_views_plans_depend_on_its_seed_alone() -> None:
+    """A view's plans depend on its seed and u only: a policy plans the same path whether or
+    not another was planned before it, and a run that starts at a later seed plans that
+    seed's view as a run through it does (runs of seed ranges side by side join into one
+    experiment)."""
+    import numpy as np
+
+    from openup_ompl.perception.closed_loop import ClosedLoopOptions, closed_loop
+    from openup_ompl.perception.extrinsic import PerceptionOptions
+    from openup_ompl.robustness import default_robustness_scene
+    from openup_ompl.scene import load_scene
+
+    problem = load_scene(default_robustness_scene())
+
+    def judge(setup, plan, truth):  # type: ignore[no-untyped-def]
+        return {"success": True, "path": np.round(plan.path, 12).tolist()}
+
+    def run(first_seed: int, trials: int, policies: tuple[str, ...]) -> dict[tuple, list]:
+        options = ClosedLoopOptions(
+            policies=policies,
+            noises=(1.0,),
+            distances=(0.8,),
+            trials=trials,
+            first_seed=first_seed,
+            perception=PerceptionOptions.exact(),
+        )
+        records = closed_loop(problem, options, judge=judge)
+        return {(r["seed"], r["policy"]): r["path"] for r in records}
+
+    through, later, alone = run(1, 2, ("0", "0.3")), run(2, 1, ("0", "0.3")), run(1, 1, ("0.3",))
+    assert through[(2, "0.3")] == later[(2, "0.3")] and through[(2, "0")] == later[(2, "0")]
+    assert through[(1, "0.3")] == alone[(1, "0.3")]
+    assert through[(1, "0")] != through[(1, "0.3")]
+
+
+@pytest.mark.parametrize(
+    "name",
+    [
+        "closed_loop_panda",
+        "closed_loop_lwa3_sdh",
+        "closed_loop_physics_panda",
+        "closed_loop_physics_lwa3_sdh",
+    ],  # fmt: skip
+)
+def test_the_committed_closed_loop_tables_recompute_from_their_trials(name: str) -> None:
+    """The results page's closed-loop tables are their committed trials' counts: every
+    cell's successes and interval, every pair's discordant views and p."""
+    import json
+    from pathlib import Path
+
+    from openup_ompl.perception.closed_loop import read_csv
+
+    root = Path(__file__).resolve().parent.parent
+    records = json.loads(
+        (root / "benchmarks/results/closed_loop" / name / "closed_loop_trials.json").read_text()
+    )
+    table = {
+        (r["policy"], r["noise"], r["distance"]): r for r in read_csv(root / f"docs/{name}.csv")
+    }
+    rows = summarize(records)
+    assert len(rows) == len(table)
+    for row in rows:
+        kept = table[(str(row["policy"]), row["noise"], row["distance"])]
+        assert (kept["successes"], kept["trials"]) == (row["successes"], row["trials"])
+        assert kept["ci_low"] == pytest.approx(row["ci_low"], abs=1e-4)
+    with (root / f"docs/{name}_pairs.csv").open(newline="") as handle:
+        pairs = {(r["policy"], r["noise"], r["distance"]): r for r in csv.DictReader(handle)}
+    for pair in compare_policies(records, default_reference([r["policy"] for r in records])):
+        kept = pairs[(pair["policy"], str(pair["noise"]), str(pair["distance"]))]
+        assert (int(kept["policy_only"]), int(kept["reference_only"])) == (
+            pair["policy_only"], pair["reference_only"],
+        )  # fmt: skip
+        assert float(kept["p_value"]) == pytest.approx(pair["p_value"], rel=1e-3)

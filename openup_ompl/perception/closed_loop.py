@@ -29,6 +29,7 @@ import numpy as np
 
 from openup_ompl._io import make_dir
 from openup_ompl.exceptions import ConfigError, InvalidProblem, PerceptionError, PlanningFailed
+from openup_ompl.executor import reseed_ompl
 from openup_ompl.perception.camera import CameraOptions, DepthCamera, camera_of_scene
 from openup_ompl.perception.extrinsic import PerceptionOptions
 from openup_ompl.perception.noise import NoiseOptions
@@ -292,6 +293,10 @@ def closed_loop(
                         "error_mm": error_mm,
                         "seen": True,
                     }
+                    # Every plan from its view's seed alone: OMPL's own draws (the path
+                    # simplifier's) would otherwise depend on the plans made before it,
+                    # so two policies with one u, or a run of a seed range, would differ.
+                    reseed_ompl(seed)
                     try:
                         setup = GraspPlanningSetup(estimated, u=u)
                         plan = setup.solve(

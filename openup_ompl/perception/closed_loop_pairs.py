@@ -8,12 +8,10 @@ the other did not (the discordant pairs) carry information about which is better
 
 from __future__ import annotations
 
-import csv
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from openup_ompl._io import make_dir
 from openup_ompl.exceptions import ConfigError
 from openup_ompl.study.stats import mcnemar_exact
 
@@ -119,10 +117,16 @@ def write_pairs_csv(rows: Sequence[dict[str, Any]], path: Path) -> Path:
     Returns:
         ``path``.
     """
-    make_dir(path.parent)
-    with path.open("w", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=list(PAIR_COLUMNS))
-        writer.writeheader()
-        for row in rows:
-            writer.writerow({**row, "p_value": f"{row['p_value']:.4g}"})
-    return path
+    from openup_ompl.study.report import write_rows
+
+    # The cells' noise and distance as the per-cell table writes them (1.0, not 1).
+    text = [
+        {
+            **row,
+            "noise": str(row["noise"]),
+            "distance": str(row["distance"]),
+            "p_value": f"{row['p_value']:.4g}",
+        }
+        for row in rows
+    ]
+    return write_rows(text, PAIR_COLUMNS, path)

@@ -126,12 +126,12 @@ def _batch_residuals(
     evaluations). A ``solid``'s points are measured by their exact distance to its faces
     not ``hidden``, or their Mahalanobis distance under the noise's covariances ``spread``
     (:func:`_points_distance`)."""
-    distance = _points_distance(xs, points, reference, solid, hidden, spread)
+    rotations = reference @ _rotations(xs[:, 8:11])
+    distance = _points_distance(xs, points, rotations, solid, hidden, spread)
     if weights is not None:
         distance = distance * weights
     parts = [distance]
     if silhouette is not None:
-        rotations = reference @ _rotations(xs[:, 8:11])
         sizes, e1, e2 = xs[:, None, 0:3], xs[:, 3:4], xs[:, 4:5]
         surface = _surface_local(sizes, e1, e2, silhouette.samples)
         world = surface @ rotations.transpose(0, 2, 1) + xs[:, None, 5:8]
@@ -148,19 +148,19 @@ def _batch_residuals(
 def _points_distance(
     xs: np.ndarray,
     points: np.ndarray,
-    reference: np.ndarray,
+    rotations: np.ndarray,
     solid: str | None,
     hidden: np.ndarray | None = None,
     spread: np.ndarray | None = None,
 ) -> np.ndarray:
-    """The points' signed distances [m] to ``k`` parameter sets' surfaces, ``(k, n)``: the
-    superquadric's first-order one, or the exact one to the ``solid``'s faces not
-    ``hidden`` (``(6,)``, :func:`~openup_ompl.perception.superquadric._hidden_faces`;
-    held, not a function of the parameters: a fit free to turn a face past the grazing
-    limit would free its points), Euclidean or, with the points' noise covariances
-    ``spread`` (``(n, 3, 3)``, world frame, scaled to a common sigma), Mahalanobis
+    """The points' signed distances [m] to ``k`` parameter sets' surfaces (``rotations``:
+    their ``(k, 3, 3)`` frames in the world), ``(k, n)``: the superquadric's first-order
+    one, or the exact one to the ``solid``'s faces not ``hidden`` (``(6,)``,
+    :func:`~openup_ompl.perception.superquadric._hidden_faces`; held, not a function of the
+    parameters: a fit free to turn a face past the grazing limit would free its points),
+    Euclidean or, with the points' noise covariances ``spread`` (``(n, 3, 3)``, world
+    frame, scaled to a common sigma), Mahalanobis
     (:func:`~openup_ompl.perception.likelihood.solid_mahalanobis`)."""
-    rotations = reference @ _rotations(xs[:, 8:11])
     local = (points[None] - xs[:, None, 5:8]) @ rotations
     sizes, e1, e2 = xs[:, None, 0:3], xs[:, 3:4], xs[:, 4:5]
     if solid is None:
@@ -467,7 +467,9 @@ def _result(
     )
     unweighted = residuals[:n] / weights if weights is not None else residuals[:n]
     if fitted[5] is not None:  # Mahalanobis: report the Euclidean distances
-        unweighted = _points_distance(x[None], points, superquadric.rotation, *fitted[3:5])[0]
+        unweighted = _points_distance(
+            x[None], points, superquadric.rotation[None], *fitted[3:5]
+        )[0]
     return SuperquadricFit(
         superquadric=superquadric,
         covariance=covariance,

@@ -26,12 +26,18 @@ import zlib
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from openup_ompl.exceptions import ConfigError, InvalidProblem, PlanningFailed
-from openup_ompl.executor import SEED_LIMIT, Task, check_generator_seed, settings_digest
+from openup_ompl.executor import (
+    SEED_LIMIT,
+    Task,
+    check_generator_seed,
+    reseed_ompl,
+    settings_digest,
+)
 from openup_ompl.planning import check_planner, check_time_limit
 from openup_ompl.scene import Problem
 from openup_ompl.study.errors import ErrorSource, believe, parse_error
@@ -39,10 +45,15 @@ from openup_ompl.study.families import Family, instance_problem, template_scene
 from openup_ompl.study.geometry import HandSweep
 from openup_ompl.study.policies import FALLBACK_U, check_policies, policy_u
 
+if TYPE_CHECKING:
+    from openup_ompl.plan import Plan
+    from openup_ompl.planning import GraspPlanningSetup
+
 __all__ = [
     "MAX_TRIALS",
     "StudyOptions",
     "make_tasks",
+    "plan_at_belief",
     "run_trial",
     "study_chunk",
     "trial_seeds",
@@ -126,17 +137,31 @@ def trial_seeds(
     return np.random.default_rng(instance), np.random.default_rng(error_stream), plan_seed
 
 
-def _reseed_ompl(seed: int) -> None:
-    """Reseed OMPL's process-wide generator (its complaint that sampling has started is
-    silenced: every plan reseeds it, so a plan's draws depend on its seed alone)."""
-    from ompl import util as ompl_util
+def plan_at_belief(
+    believed: Problem, u: float, plan_seed: int, planner: str, time_limit: float
+) -> tuple[GraspPlanningSetup, Plan]:
+    """A trial's plan for one ``u``, as the study makes it: OMPL's generator restarted from
+    ``plan_seed`` (the plan depends on its seed alone), the simplified path.
 
-    from openup_ompl.executor import seed_ompl
+    Args:
+        believed: The scene at the believed pose.
+        u: The hand law's uncertainty parameter, in [0, 1].
+        plan_seed: The trial's plan seed (:func:`trial_seeds`).
+        planner: A planner name.
+        time_limit: Planning time [s].
 
-    level = ompl_util.getLogLevel()
-    ompl_util.setLogLevel(ompl_util.LOG_NONE)
-    seed_ompl(seed)
-    ompl_util.setLogLevel(level)
+    Returns:
+        The setup and its plan.
+
+    Raises:
+        PlanningFailed, InvalidProblem: No plan (the study counts it as ``plan failed``).
+    """
+    from openup_ompl.planning import GraspPlanningSetup, PlanningOptions
+
+    reseed_ompl(plan_seed)
+    options = PlanningOptions(u=u, planner=planner, time_limit=time_limit, simplify=True)
+    setup = GraspPlanningSetup(believed, options)
+    return setup, setup.solve(seed=plan_seed)
 
 
 def _execute(
@@ -144,13 +169,9 @@ def _execute(
 ) -> dict[str, Any]:
     """Plan at the belief with ``u``, execute against the truth in physics."""
     from openup_ompl.physics.sweep import physics_judge
-    from openup_ompl.planning import GraspPlanningSetup, PlanningOptions
 
-    _reseed_ompl(plan_seed)
-    options = PlanningOptions(u=u, planner=planner, time_limit=time_limit, simplify=True)
     try:
-        setup = GraspPlanningSetup(believed, options)
-        plan = setup.solve(seed=plan_seed)
+        setup, plan = plan_at_belief(believed, u, plan_seed, planner, time_limit)
     except (PlanningFailed, InvalidProblem) as error:
         return {"planned": False, "held": False, "cause": "plan failed", "error": str(error)}
     trial = physics_judge(setup, plan, truth)
