@@ -267,7 +267,11 @@ class SuperquadricFit:
 
 
 def parameter_covariance(
-    jacobian: np.ndarray, residuals: np.ndarray, points: int, kind: str
+    jacobian: np.ndarray,
+    residuals: np.ndarray,
+    points: int,
+    kind: str,
+    held: Sequence[int] = (),
 ) -> tuple[np.ndarray, np.ndarray]:
     """The parameters' covariance at the optimum, and the unobservable directions.
 
@@ -277,6 +281,9 @@ def parameter_covariance(
             support's (:func:`measurement_rows`).
         points: How many residuals are the points' (they give ``s^2``).
         kind: One of :data:`COVARIANCES`.
+        held: Indices in :data:`PARAMETERS` not estimated (a scene's solid's exponents:
+            a cylinder is a cylinder): zero rows and columns, and ``jacobian``'s columns
+            for them ignored.
 
     Returns:
         ``(covariance, unobservable)``: the ``(11, 11)`` covariance of
@@ -284,7 +291,13 @@ def parameter_covariance(
     """
     n = points
     variance = float(residuals[:n] @ residuals[:n] / (n - N_PARAMETERS))
-    return _covariance(jacobian, residuals, variance, kind)
+    free = [k for k in range(N_PARAMETERS) if k not in set(held)]
+    reduced, unseen = _covariance(jacobian[:, free], residuals, variance, kind)
+    covariance = np.zeros((N_PARAMETERS, N_PARAMETERS))
+    covariance[np.ix_(free, free)] = reduced
+    unobservable = np.zeros((len(unseen), N_PARAMETERS))
+    unobservable[:, free] = unseen
+    return covariance, unobservable
 
 
 def measurement_rows(residuals: np.ndarray, points: int, free_space: int) -> np.ndarray:

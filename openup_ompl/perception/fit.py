@@ -460,16 +460,16 @@ def _result(
     args = (points, superquadric.rotation, *fitted)
     residuals = _residuals(x, *args)
     jacobian = _jacobian(x, *args)
+    held = [] if fitted[3] is None else [3, 4]  # a solid's exponents: its own, not estimated
+    jacobian[:, held] = 0.0
     n = points.shape[0]
     rows = measurement_rows(residuals, n, 0 if silhouette is None else len(silhouette.samples))
     covariance, unobservable = parameter_covariance(
-        jacobian[rows], residuals[rows], n, options.covariance
+        jacobian[rows], residuals[rows], n, options.covariance, held
     )
     unweighted = residuals[:n] / weights if weights is not None else residuals[:n]
     if fitted[5] is not None:  # Mahalanobis: report the Euclidean distances
-        unweighted = _points_distance(
-            x[None], points, superquadric.rotation[None], *fitted[3:5]
-        )[0]
+        unweighted = _points_distance(x[None], points, superquadric.rotation[None], *fitted[3:5])[0]
     return SuperquadricFit(
         superquadric=superquadric,
         covariance=covariance,

@@ -37,6 +37,7 @@ __all__ = [
 #: The fit's parameters, in the order of :attr:`SuperquadricFit.covariance`.
 PARAMETERS = ("a1", "a2", "a3", "e1", "e2", "x", "y", "z", "rx", "ry", "rz")
 N_PARAMETERS = len(PARAMETERS)
+EXPONENTS = slice(3, 5)
 POSITION = slice(5, 8)
 ROTATION = slice(8, 11)
 
