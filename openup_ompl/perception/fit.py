@@ -482,4 +482,6 @@ def _result(
         residuals=residuals[rows],
         kind=options.covariance,
         prior_rows=0 if prior is None else 3 + len(prior.ties),
+        solid=fitted[3],
+        hidden=fitted[4],
     )
