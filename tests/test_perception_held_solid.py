@@ -20,9 +20,7 @@ UNSEEN = Path(__file__).resolve().parent.parent / "benchmarks" / "unseen" / "pan
 
 
 def test_held_parameters_carry_no_covariance() -> None:
-    """Held parameters have zero rows and columns, and the others' covariance is that of
-    ``s^2 (J^T J)^-1`` without their columns, whatever those columns hold (a solid's exponents
-    are measured by the resting row's surface samples alone: 1e-2 against 1 elsewhere)."""
+    """Held parameters get zero rows and columns; the others get s^2 (J^T J)^-1 of the rest."""
     rng = np.random.default_rng(5)
     jacobian = rng.normal(size=(60, N_PARAMETERS))
     jacobian[:, 3:5] = 0.0
@@ -41,10 +39,7 @@ def test_held_parameters_carry_no_covariance() -> None:
 
 
 def test_the_wall_cans_covariance_is_its_solids() -> None:
-    """The wall's can from 40 degrees up, azimuth -81 (the view ``--camera auto`` chose
-    before its fits rested on the solid) at noise 1, seeds 1-4 (seed 2 read a position
-    sigma of 6, 63 and 633 mm and ``u`` = 1 from the considered exponents): the exponents
-    carry no covariance, every sigma is under 2 mm and ``u`` under 0.4."""
+    """The wall can's view that read a 633 mm sigma: no exponent covariance, sigmas < 2 mm."""
     problem = oo.load_scene(UNSEEN / "wall_window.toml")
     options = dataclasses.replace(camera_of_scene(problem), azimuth=-81.119341)
     camera = DepthCamera(problem, options)
