@@ -10,7 +10,11 @@ in the joint limits, and near the grasp, ``d <= mga``, as ``bench_coupling.py`` 
 them), four checks side by side: the Python coupled and fixed-hand checks
 (``CoupledChecker.is_valid``, the fixed hand at the law's plateau) and the compiled
 coupled and fixed-hand checks; each also through OMPL (``si.isValid``, the compiled one
-behind a minimal ``StateValidityChecker`` that counts the state). Every verdict is
+behind a minimal ``StateValidityChecker`` that counts the state). Beside them, the bare
+query of the law's own configuration precomputed, from Python and compiled: near the
+grasp the law's hand differs from the fixed one, and so does the query's work; the
+coupled check over the bare query of the same configuration is the law's own price on
+identical geometry. Every verdict is
 compared with a history-free pair-loop reference, and the compiled check's ``d`` with
 the Python check's (bit for bit); any difference fails the script.
 
@@ -36,6 +40,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pinocchio as pin
 from ompl import base as ob
 from ompl import util as ou
 
@@ -55,6 +60,8 @@ VARIANTS = {
     "python fixed": ("python", "fixed", False),
     "native coupled": ("native", "coupled", False),
     "native fixed": ("native", "fixed", False),
+    "python same q": ("python", "same q", False),
+    "native same q": ("native", "same q", False),
     "python coupled via OMPL": ("python", "coupled", True),
     "python fixed via OMPL": ("python", "fixed", True),
     "native coupled via OMPL": ("native", "coupled", True),
@@ -91,7 +98,17 @@ def variants(
     dof = checkers["coupled"].robot.arm_idx.size
     lists = [arm.tolist() for arm in arms]
     checks: dict[str, Callable[[], list[bool]]] = {}
+    law_qs = [checkers["coupled"].coupled_q(arm) for arm in arms]
+    context = checkers["coupled"].finest_world.context()
+    model, data, manager = checkers["coupled"].finest_world.model, context.data, context.manager
+    collide = pin.computeCollisions
+    checks["python same q"] = lambda: [not collide(model, data, manager, q, True) for q in law_qs]
+    q_lists = [q.tolist() for q in law_qs]
+    native_q = natives["coupled"].is_valid_q
+    checks["native same q"] = lambda: [native_q(q) for q in q_lists]
     for name, (implementation, hand, via_ompl) in VARIANTS.items():
+        if hand == "same q":
+            continue
         if not via_ompl:
             call = (checkers[hand] if implementation == "python" else natives[hand]).is_valid
             checks[name] = lambda call=call: [call(a) for a in lists]
@@ -130,7 +147,8 @@ def verify(
     for name, check in checks.items():
         for checker in checkers.values():
             checker.forget()
-        got, expected = check(), references[VARIANTS[name][1]]
+        hand = VARIANTS[name][1]
+        got, expected = check(), references["fixed" if hand == "fixed" else "coupled"]
         wrong = [i for i, (a, b) in enumerate(zip(got, expected, strict=True)) if a != b]
         if wrong:
             raise SystemExit(f"{name_of}: {name} disagrees with the reference on {wrong[:5]}")
@@ -197,6 +215,10 @@ def ratios(times: dict[str, list[float]]) -> dict[str, float]:
             )
         for hand in ("coupled", "fixed"):
             out[f"python/native {hand}{via}"] = paired(f"python {hand}{via}", f"native {hand}{via}")
+    for implementation in ("python", "native"):
+        out[f"{implementation} coupled/same q"] = paired(
+            f"{implementation} coupled", f"{implementation} same q"
+        )
     return out
 
 
@@ -248,6 +270,29 @@ def report(info: dict[str, Any], results: dict[str, Any], args: argparse.Namespa
                 )
         title = "Through OMPL (`si.isValid`)" if via else "Direct calls (`is_valid(arm)`)"
         out += [f"{title}:", "", _common.markdown_table(header, rows, left=2), ""]
+    header = ["robot", "states", "py same q", "C++ same q", "py c/same q", "C++ c/same q"]
+    rows = []
+    for robot_name, entry in results.items():
+        for set_name, s in entry["sets"].items():
+            med, r = s["median_s_per_state"], s["ratios"]
+            rows.append(
+                [
+                    robot_name,
+                    set_name,
+                    f"{1e6 * med['python same q']:.2f}",
+                    f"{1e6 * med['native same q']:.2f}",
+                    f"{r['python coupled/same q']:.3f}",
+                    f"{r['native coupled/same q']:.3f}",
+                ]
+            )
+    out += [
+        "The bare query of the law's own configuration, precomputed (identical geometry on "
+        "every state; Python: one `pin.computeCollisions` of a full `q` array; C++: "
+        "`is_valid_q` of the `nq` floats), and the coupled check's time over it (c/same q):",
+        "",
+        _common.markdown_table(header, rows, left=2),
+        "",
+    ]
     out.append("State sets:")
     out.append("")
     for robot_name, entry in results.items():

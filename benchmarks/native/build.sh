@@ -28,7 +28,7 @@ defs=(
   -DOCTOMAP_MAJOR_VERSION=1 -DOCTOMAP_MINOR_VERSION=10 -DOCTOMAP_PATCH_VERSION=0
   -DNDEBUG
 )
-nice -n 15 "${CXX:-g++}" -std=c++17 -O2 -ffp-contract=off -fPIC -shared -fvisibility=hidden \
+nice -n 15 "${CXX:-g++}" -std=c++17 -O3 -ffp-contract=off -fPIC -shared -fvisibility=hidden \
   "${defs[@]}" \
   -isystem "$prefix/include" -isystem "$eigen_dir/cmeel.prefix/include/eigen3" -isystem "$pyinc" \
   "$here/coupled_check.cpp" -o "$out" \

@@ -95,6 +95,7 @@ class CoupledCheck {
     const std::vector<double> q0 = doubles(q);
     if (static_cast<long>(q0.size()) != model_.nq) throw std::invalid_argument("q: nq values");
     q_ = Eigen::Map<const Vector>(q0.data(), q0.size());
+    full_ = q_;
     mga_ = bp::extract<double>(law["mga"]);
     arrival_ = doubles(law["arrival"]);
     slope_ = doubles(law["low_slope"]);
@@ -156,19 +157,29 @@ class CoupledCheck {
     return !pinocchio::computeCollisions(manager_, &callback);
   }
 
+  // Whether the full configuration (nq floats) is free: the bare query, as
+  // pin.computeCollisions(model, data, manager, q, True) makes it (for comparison).
+  bool is_valid_q(bp::object q) {
+    read(q, full_, nullptr);
+    return !pinocchio::computeCollisions(model_, data_, manager_, full_, true);
+  }
+
   double distance() const { return distance_; }
 
  private:
-  void write_arm(const bp::object& arm) {
-    PyObject* seq = PySequence_Fast(arm.ptr(), "arm: a sequence of floats");
+  void write_arm(const bp::object& arm) { read(arm, q_, &arm_); }
+
+  // Write the floats of a Python sequence into out[where[k]] (out[k] without where).
+  static void read(const bp::object& values, Vector& out, const std::vector<long>* where) {
+    PyObject* seq = PySequence_Fast(values.ptr(), "a sequence of floats");
     if (seq == nullptr) bp::throw_error_already_set();
     const Py_ssize_t n = PySequence_Fast_GET_SIZE(seq);
-    if (n != static_cast<Py_ssize_t>(arm_.size())) {
+    if (n != static_cast<Py_ssize_t>(where ? where->size() : out.size())) {
       Py_DECREF(seq);
-      throw std::invalid_argument("arm: one value per arm joint");
+      throw std::invalid_argument(where ? "arm: one value per arm joint" : "q: nq values");
     }
     PyObject** items = PySequence_Fast_ITEMS(seq);
-    for (Py_ssize_t k = 0; k < n; ++k) q_[arm_[k]] = PyFloat_AsDouble(items[k]);
+    for (Py_ssize_t k = 0; k < n; ++k) out[where ? (*where)[k] : k] = PyFloat_AsDouble(items[k]);
     Py_DECREF(seq);
     if (PyErr_Occurred()) bp::throw_error_already_set();
   }
@@ -209,7 +220,7 @@ class CoupledCheck {
   long palm_;
   std::vector<long> arm_, hand_;
   std::vector<pinocchio::JointIndex> arm_joints_, hand_joints_;
-  Vector q_;
+  Vector q_, full_;
   double mga_ = 0, inv_start_ = 1, rotation_weight_ = 0, distance_ = 0;
   std::vector<double> arrival_, slope_, high_, lower_, upper_;
   bool clip_low_ = false, weighted_ = false, fixed_ = false;
@@ -228,6 +239,8 @@ BOOST_PYTHON_MODULE(_coupled_check) {
           bp::args("self", "data", "manager", "arm_q", "hand_q", "palm_frame", "q", "law")))
       .def("is_valid", &CoupledCheck::is_valid, bp::args("self", "arm"),
            "Whether the arm state, the hand set by the law (or fixed), is collision-free.")
+      .def("is_valid_q", &CoupledCheck::is_valid_q, bp::args("self", "q"),
+           "Whether the full configuration (nq floats) is collision-free: the bare query.")
       .add_property("distance", &CoupledCheck::distance,
                     "d at the last state checked (inf for a fixed hand).");
 }
