@@ -5,6 +5,7 @@
 // wheels' headers and libraries (boost.python, so that the Python objects pin.Model,
 // pin.Data and the broadphase manager are used in place, without copies).
 #include <boost/python.hpp>
+#include <boost/version.hpp>
 
 #include <cmath>
 #include <limits>
@@ -12,6 +13,7 @@
 #include <vector>
 
 #include <coal/broadphase/broadphase_bruteforce.h>
+#include <coal/config.hh>
 
 #include "pinocchio/algorithm/frames.hpp"
 #include "pinocchio/algorithm/geometry.hpp"
@@ -231,6 +233,13 @@ class CoupledCheck {
 }  // namespace
 
 BOOST_PYTHON_MODULE(_coupled_check) {
+  // The versions compiled against: the module uses the Python objects' C++ types in
+  // place, so it may only run with these very builds (native_check.load checks them).
+  bp::dict built_with;
+  built_with["pinocchio"] = PINOCCHIO_VERSION;
+  built_with["coal"] = COAL_VERSION;
+  built_with["boost"] = BOOST_LIB_VERSION;
+  bp::scope().attr("built_with") = built_with;
   bp::class_<CoupledCheck, boost::noncopyable>(
       "CoupledCheck",
       "The coupled check of one arm state (forward kinematics once, d, the law's hand, "

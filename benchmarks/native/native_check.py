@@ -11,6 +11,9 @@ import sys
 from pathlib import Path
 from typing import Any
 
+import coal
+import pinocchio as pin
+
 from openup_ompl.exceptions import ConfigError
 from openup_ompl.state_check import StateChecker
 
@@ -19,19 +22,33 @@ HERE = Path(__file__).resolve().parent
 
 
 def load() -> Any:
-    """The compiled module.
+    """The compiled module, if it was built against the pinocchio and coal in use.
+
+    The module works on the Python objects' C++ types in place (``pin.Data``, the Coal
+    manager): built against another pinocchio it would read them with another layout,
+    and pinocchio's library names carry no version that would stop it loading.
 
     Raises:
-        ConfigError: It is not built (run ``bash benchmarks/native/build.sh``).
+        ConfigError: It is not built (run ``bash benchmarks/native/build.sh``), or was
+            built against other versions of pinocchio or coal.
     """
     if str(HERE) not in sys.path:
         sys.path.insert(0, str(HERE))
     try:
-        return importlib.import_module("_coupled_check")
+        module = importlib.import_module("_coupled_check")
     except ImportError as error:
         raise ConfigError(
             "benchmarks/native/_coupled_check", str(error), "built: bash benchmarks/native/build.sh"
         ) from None
+    running = {"pinocchio": pin.__version__, "coal": coal.__version__}
+    built = {name: module.built_with[name] for name in running}
+    if built != running:
+        raise ConfigError(
+            "benchmarks/native/_coupled_check",
+            f"built against {built}",
+            f"built against the versions in use, {running}: bash benchmarks/native/build.sh",
+        )
+    return module
 
 
 def law_table(checker: StateChecker) -> dict[str, Any]:
