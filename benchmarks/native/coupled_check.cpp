@@ -10,6 +10,7 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 #include <coal/broadphase/broadphase_bruteforce.h>
@@ -166,6 +167,34 @@ class CoupledCheck {
     return !pinocchio::computeCollisions(model_, data_, manager_, full_, true);
   }
 
+  // Collision flags of the columns of a float64 array of shape (nq, n), checked one by
+  // one in this thread as CollisionWorld.batch_in_collision's serial path does (stopping
+  // at the first collision if asked; the flags after it are then false).
+  bp::list collides_columns(bp::object qs, bool stop_at_first) {
+    Py_buffer view;
+    if (PyObject_GetBuffer(qs.ptr(), &view, PyBUF_STRIDES | PyBUF_FORMAT) != 0)
+      bp::throw_error_already_set();
+    const bool ok = view.ndim == 2 && view.shape[0] == model_.nq && view.format != nullptr &&
+                    std::string(view.format) == "d";
+    if (!ok) {
+      PyBuffer_Release(&view);
+      throw std::invalid_argument("qs: a float64 array of shape (nq, n)");
+    }
+    const char* base = static_cast<const char*>(view.buf);
+    const Py_ssize_t n = view.shape[1];
+    std::vector<bool> flags(n, false);
+    for (Py_ssize_t c = 0; c < n; ++c) {
+      for (Py_ssize_t r = 0; r < view.shape[0]; ++r)
+        full_[r] = *reinterpret_cast<const double*>(base + r * view.strides[0] + c * view.strides[1]);
+      flags[c] = pinocchio::computeCollisions(model_, data_, manager_, full_, true);
+      if (flags[c] && stop_at_first) break;
+    }
+    PyBuffer_Release(&view);
+    bp::list out;
+    for (bool flag : flags) out.append(flag);
+    return out;
+  }
+
   double distance() const { return distance_; }
 
  private:
@@ -250,6 +279,9 @@ BOOST_PYTHON_MODULE(_coupled_check) {
            "Whether the arm state, the hand set by the law (or fixed), is collision-free.")
       .def("is_valid_q", &CoupledCheck::is_valid_q, bp::args("self", "q"),
            "Whether the full configuration (nq floats) is collision-free: the bare query.")
+      .def("collides_columns", &CoupledCheck::collides_columns,
+           bp::args("self", "qs", "stop_at_first"),
+           "Collision flags of the columns of a float64 (nq, n) array, one by one.")
       .add_property("distance", &CoupledCheck::distance,
                     "d at the last state checked (inf for a fixed hand).");
 }

@@ -14,6 +14,7 @@ from typing import Any
 import coal
 import pinocchio as pin
 
+from openup_ompl.collision import CollisionWorld
 from openup_ompl.exceptions import ConfigError
 from openup_ompl.state_check import StateChecker
 
@@ -73,20 +74,21 @@ def law_table(checker: StateChecker) -> dict[str, Any]:
     }
 
 
-def native_check(checker: StateChecker) -> Any:
+def native_check(checker: StateChecker, world: CollisionWorld | None = None) -> Any:
     """A compiled check of single arm states at the checker's finest margin, on this
     thread's context of its finest world (the same Pinocchio data and Coal manager as
     :meth:`~openup_ompl.state_check.StateChecker.is_valid` uses).
 
     Args:
         checker: The Python checker whose law, grasp and world to use.
+        world: Another world to check in (one of the checker's margins).
 
     Returns:
         A ``_coupled_check.CoupledCheck``: ``is_valid(arm)`` for any sequence of floats,
         ``distance`` (``d`` at the last state checked, ``inf`` for a fixed hand).
     """
     module = load()
-    context = checker.finest_world.context()
+    context = (checker.finest_world if world is None else world).context()
     robot = checker.robot
     return module.CoupledCheck(
         context.data,
