@@ -97,6 +97,10 @@ class CoupledCheck {
         arm_(indices(arm_q)), hand_(indices(hand_q)) {
     const std::vector<double> q0 = doubles(q);
     if (static_cast<long>(q0.size()) != model_.nq) throw std::invalid_argument("q: nq values");
+    if (!model_.check(data_)) throw std::invalid_argument("data: not the manager model's");
+    for (const std::vector<long>* selector : {&arm_, &hand_})
+      for (long i : *selector)
+        if (i < 0 || i >= model_.nq) throw std::invalid_argument("arm_q, hand_q: indices in q");
     q_ = Eigen::Map<const Vector>(q0.data(), q0.size());
     full_ = q_;
     mga_ = bp::extract<double>(law["mga"]);
@@ -106,12 +110,15 @@ class CoupledCheck {
     lower_ = doubles(law["lower"]);
     upper_ = doubles(law["upper"]);
     clip_low_ = bp::extract<bool>(law["clip_low"]);
-    goal_ = Eigen::Vector3d(Eigen::Map<const Eigen::Vector3d>(doubles(law["goal"]).data()));
+    const std::vector<double> goal = doubles(law["goal"]);
+    if (goal.size() != 3) throw std::invalid_argument("goal: 3 coordinates");
+    goal_ = Eigen::Map<const Eigen::Vector3d>(goal.data());
     inv_start_ = bp::extract<double>(law["inv_start"]);
     rotation_weight_ = bp::extract<double>(law["rotation_weight"]);
     weighted_ = !bp::object(law["goal_rotation_t"]).is_none();
     if (weighted_) {
       const std::vector<double> r = doubles(law["goal_rotation_t"]);
+      if (r.size() != 9) throw std::invalid_argument("goal_rotation_t: 9 values");
       goal_rotation_t_ = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(r.data());
     }
     fixed_ = !bp::object(law["fixed"]).is_none();
