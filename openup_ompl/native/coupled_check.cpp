@@ -1,9 +1,9 @@
 // The coupled single-state check of openup_ompl.state_check, compiled: arm joints ->
 // forward kinematics -> the palm's normalised distance d to the grasp -> the hand law ->
-// the hand joints' placements -> Coal's broadphase query. A prototype measured by
-// benchmarks/bench_native.py; built by benchmarks/native/build.sh against the pin/coal
-// wheels' headers and libraries (boost.python, so that the Python objects pin.Model,
-// pin.Data and the broadphase manager are used in place, without copies).
+// the hand joints' placements -> Coal's broadphase query. Optional: built on the user's
+// machine by `openup-ompl build-native` (openup_ompl/native/_build.py) against the pin and
+// coal wheels' headers and libraries, loaded by openup_ompl.native (boost.python, so that
+// the Python objects pin.Data and the broadphase manager are used in place, without copies).
 #include <boost/python.hpp>
 #include <boost/version.hpp>
 
@@ -270,7 +270,7 @@ class CoupledCheck {
 
 BOOST_PYTHON_MODULE(_coupled_check) {
   // The versions compiled against: the module uses the Python objects' C++ types in
-  // place, so it may only run with these very builds (native_check.load checks them).
+  // place, so it may only run with these very builds (openup_ompl.native.load checks them).
   bp::dict built_with;
   built_with["pinocchio"] = PINOCCHIO_VERSION;
   built_with["coal"] = COAL_VERSION;
