@@ -4,7 +4,7 @@ placements, the palm frame, ``d``, the law's hand, the hand joints' placements, 
 broadphase query), on the checker's own Pinocchio data and Coal manager.
 
 Nothing is compiled when the package is installed. ``openup-ompl build-native``
-(:func:`~openup_ompl.native._build.build`) compiles ``coupled_check.cpp`` on this machine
+(:func:`build`) compiles ``coupled_check.cpp`` on this machine
 against the headers and libraries of the pin and coal wheels in use, into a per-user
 cache folder named after the exact versions (:func:`build_key`): a pin or coal upgrade
 changes the name, so a stale binary is never found, let alone loaded. The module works
@@ -48,6 +48,10 @@ if TYPE_CHECKING:
 
 __all__ = [
     "BUILD_COMMAND",
+    "CXXFLAGS",
+    "DIR_VARIABLE",
+    "KEY_DISTRIBUTIONS",
+    "MODULE_NAME",
     "NATIVE_MODES",
     "SOURCE",
     "binary_path",
@@ -56,6 +60,7 @@ __all__ = [
     "check_built_with",
     "compiled_check",
     "inexact_reason",
+    "law_table",
     "load",
     "native_dir",
     "resolve",
