@@ -4,6 +4,7 @@ its verdicts, ``d`` and counts against the Python check's on every shipped robot
 
 from __future__ import annotations
 
+import os
 import threading
 from collections.abc import Iterator
 from pathlib import Path
@@ -153,10 +154,16 @@ def test_the_status_command_says_it_is_not_built(capsys: pytest.CaptureFixture[s
 
 @pytest.fixture(scope="module")
 def built(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
-    """The compiled check built into a fresh folder (this module's only build)."""
+    """The compiled check built into a fresh folder (this module's only build); skipped
+    without a compiler or PyPI (for Eigen's headers), except in CI (``CI`` set)."""
     folder = tmp_path_factory.mktemp("native-build")
     lines: list[str] = []
-    path = native.build(folder, log=lines.append)
+    try:
+        path = native.build(folder, log=lines.append)
+    except oo.NativeBuildError as error:
+        if error.step in ("compiler", "eigen") and not os.environ.get("CI"):
+            pytest.skip(f"cannot build here: {error}")
+        raise
     assert path == native.binary_path(folder) and path.is_file()
     assert lines[-1] == f"built: {path}"
     yield folder

@@ -41,8 +41,9 @@ def _tail(text: str) -> str:
 
 
 def _compiler(compiler: str | None) -> str:
-    """The C++ compiler: ``compiler``, else ``$CXX``, else ``c++`` (then ``g++``)."""
-    names = [compiler] if compiler else [os.environ.get("CXX") or "c++", "g++", "clang++"]
+    """The C++ compiler: ``compiler``, else ``$CXX``, else ``c++``, ``g++`` or ``clang++``."""
+    given = compiler or os.environ.get("CXX")
+    names = [given] if given else ["c++", "g++", "clang++"]
     for name in names:
         found = shutil.which(name)
         if found:
