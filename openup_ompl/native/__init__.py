@@ -19,6 +19,10 @@ the law, else the Python check; ``"on"`` raises
 never uses it. It is exact (the same verdicts, the same ``d`` bit for bit) for the
 ``"translation"`` distance and for a fixed hand; with the ``"weighted"`` distance its
 ``d`` may differ from Python's in the last bits, so ``"auto"`` keeps the Python check.
+The compiled check places the arm joints, reads ``d``, then places the hand joints: one
+forward kinematics per state wherever it lies, so it needs no
+:data:`~openup_ompl.state_check.NEAR_HINT` ordering. Built and tested on Linux (x86-64,
+g++); other platforms' wheels lay their libraries out differently and are untested.
 """
 
 from __future__ import annotations
