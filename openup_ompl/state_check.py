@@ -70,9 +70,9 @@ class StateChecker:
             own links (see :func:`~openup_ompl.collision.self_margins`); halvings of it
             (:data:`REFINE_LEVELS`) are the finer margins.
         coarse_levels: Doublings of the padding tried first (:data:`COARSE_LEVELS`).
-        native: Whether to check single states with the compiled check
-            (:mod:`openup_ompl.native`): ``"auto"`` when it is built for the pinocchio and
-            coal in use and exact for the law, ``"on"`` always (else
+        native: The compiled check (:mod:`openup_ompl.native`) for single states and the
+            batches checked in the calling thread: ``"auto"`` if it is built for the
+            versions in use and exact for the law, ``"on"`` always (else
             :class:`~openup_ompl.exceptions.NativeUnavailable`), ``"off"`` never. The
             verdicts, ``d``, the remembered free states and the counts are the same.
 
