@@ -70,8 +70,8 @@ class StateChecker:
             own links (see :func:`~openup_ompl.collision.self_margins`); halvings of it
             (:data:`REFINE_LEVELS`) are the finer margins.
         coarse_levels: Doublings of the padding tried first (:data:`COARSE_LEVELS`).
-        native: The compiled check (:mod:`openup_ompl.native`) for single states and the
-            batches checked in the calling thread: ``"auto"`` if it is built for the
+        native: The compiled check (:mod:`openup_ompl.native`) for single states, ``d`` and
+            the batches checked in the calling thread: ``"auto"`` if it is built for the
             versions in use and exact for the law, ``"on"`` always (else
             :class:`~openup_ompl.exceptions.NativeUnavailable`), ``"off"`` never. The
             verdicts, ``d``, the remembered free states and the counts are the same.
@@ -281,8 +281,7 @@ class StateChecker:
         return free, d
 
     def _compiled_state(self, arm: Any, array: bool) -> tuple[bool, float]:
-        """Whether the arm state (a float64 array if ``array``) collides, and ``d``, by
-        the compiled check."""
+        """``(collides, d)`` of the arm state (a float64 array if ``array``), compiled."""
         try:
             check = self._compiled_local.finest
         except AttributeError:
@@ -301,10 +300,9 @@ class StateChecker:
             return checks
 
     def _batch_collides(self, level: int, qs: np.ndarray, stop_at_first: bool = True) -> np.ndarray:
-        """Collision flags of the columns of ``qs`` in the world of ``paddings[level]``:
-        :meth:`~openup_ompl.collision.CollisionWorld.batch_in_collision`, whose batches
-        checked one by one in this thread go through the compiled loop when it is in use
-        (the same query per state, the same flags)."""
+        """Flags of the columns of ``qs`` colliding in the world of ``paddings[level]``:
+        :meth:`~openup_ompl.collision.CollisionWorld.batch_in_collision`, its batches checked
+        in this thread through the compiled loop when in use (the same query, flags)."""
         world = self._worlds[level]
         serial = world.num_threads == 1 or qs.shape[1] < PARALLEL_MIN_STATES
         if self._compiled is None or not serial:
@@ -352,6 +350,8 @@ class StateChecker:
 
     def _palm_distance(self, context: ThreadContext, q: np.ndarray) -> float:
         """``d`` at the full configuration ``q`` (forward kinematics in ``context``)."""
+        if self.native and self._translation_only:  # the compiled d, bit for bit
+            return self._compiled_checks()[-1].distance_q(q)  # type: ignore[no-any-return]
         pin.forwardKinematics(self._model, context.data, q)
         return self._placed_distance(context)
 

@@ -203,7 +203,8 @@ def test_the_build_loads_and_is_reused(with_build: Path) -> None:
 @pytest.mark.parametrize("robot", ROBOTS)
 def test_compiled_verdicts_and_d_equal_python(with_build: Path, robot: str) -> None:
     """On 200 uniform and 200 near-grasp states per robot, the compiled check gives the
-    Python check's verdicts, ``d`` bit for bit and counts; so do motion checks."""
+    Python check's verdicts, ``d`` bit for bit, counts and batches' hands; so do motion
+    checks."""
     problem = oo.load_scene(data_dir("scenes") / f"{robot}_can.toml")
     setup = oo.GraspPlanningSetup(problem, native="off")
     python, compiled = setup.checker, CoupledChecker(problem, native="on")
@@ -220,6 +221,10 @@ def test_compiled_verdicts_and_d_equal_python(with_build: Path, robot: str) -> N
     again = [python._check_state(arm) for arm in arms]  # the free ones remembered
     assert [compiled._check_state(arm) for arm in arms] == again == expected
     assert compiled.states_checked == python.states_checked < 2 * len(arms)
+    distances = [python.normalized_distance(arm) for arm in arms]
+    assert [compiled.normalized_distance(arm) for arm in arms] == distances
+    for rows in (arms[190:230], arms[200:206], arms[300:340]):  # the batches' hands
+        assert np.array_equal(compiled.coupled_qs(rows), python.coupled_qs(rows))
     free = arms[[k for k, (ok, _) in enumerate(expected) if ok]]
     pairs = [(free[k], free[(k * 7 + 3) % len(free)]) for k in range(60)]
     motions = [python.check_motion(a, b) for a, b in pairs]

@@ -26,9 +26,9 @@ from openup_ompl._resources import data_dir
 FUNCTIONS = {
     ("state_check.py", "_check_state"): "single states (`StateChecker._check_state`)",
     ("validity.py", "check_motion"): "motions (`CoupledChecker.check_motion`)",
-    ("state_check.py", "_batch_collides"): "  of which batches (`_batch_collides`)",
+    ("state_check.py", "_batch_collides"): "  batches (`_batch_collides`, the re-check's too)",
+    ("state_check.py", "_set_hands"): "  the batches' hands (`_set_hands`)",
     ("collision.py", "batch_in_collision"): "`CollisionWorld.batch_in_collision` (all callers)",
-    ("state_check.py", "_set_hands"): "  of which the batches' hands (`_set_hands`)",
 }
 
 

@@ -202,6 +202,26 @@ class CoupledCheck {
     return out;
   }
 
+  // d at a full configuration (a float64 array of nq values, any stride): the arm joints'
+  // placements and the palm's, as StateChecker._palm_distance computes it (the hand
+  // joints move no frame d reads). Leaves distance unchanged.
+  double distance_q(bp::object q) {
+    Py_buffer view;
+    if (PyObject_GetBuffer(q.ptr(), &view, PyBUF_STRIDES | PyBUF_FORMAT) != 0)
+      bp::throw_error_already_set();
+    const bool ok = view.ndim == 1 && view.shape[0] == model_.nq && view.format != nullptr &&
+                    std::string(view.format) == "d";
+    if (!ok) {
+      PyBuffer_Release(&view);
+      throw std::invalid_argument("q: a float64 array of nq values");
+    }
+    const char* base = static_cast<const char*>(view.buf);
+    for (long i : arm_) q_[i] = *reinterpret_cast<const double*>(base + i * view.strides[0]);
+    PyBuffer_Release(&view);
+    for (auto j : arm_joints_) step(j);
+    return palm_distance();
+  }
+
   double distance() const { return distance_; }
 
  private:
@@ -289,6 +309,8 @@ BOOST_PYTHON_MODULE(_coupled_check) {
       .def("collides_columns", &CoupledCheck::collides_columns,
            bp::args("self", "qs", "stop_at_first"),
            "Collision flags of the columns of a float64 (nq, n) array, one by one.")
+      .def("distance_q", &CoupledCheck::distance_q, bp::args("self", "q"),
+           "d at a full configuration (a float64 array of nq values).")
       .add_property("distance", &CoupledCheck::distance,
                     "d at the last state checked (inf for a fixed hand).");
 }
