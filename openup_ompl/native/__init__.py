@@ -318,8 +318,8 @@ def compiled_check(module: ModuleType, checker: StateChecker, world: CollisionWo
 
     Returns:
         A ``CoupledCheck``: ``is_valid(arm)`` for any sequence of floats, ``distance``
-        (``d`` at the last state checked, ``inf`` for a fixed hand) and
-        ``collides_columns(qs, stop_at_first)``.
+        (``d`` at the last state checked, ``inf`` for a fixed hand), ``distance_q(q)``
+        (``d`` at a full configuration) and ``collides_columns(qs, stop_at_first)``.
     """
     context = world.context()
     robot = checker.robot
