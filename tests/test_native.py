@@ -142,6 +142,20 @@ def test_the_build_refuses_a_folder_without_eigen(no_build: Path, tmp_path: Path
     assert error.value.step == "eigen"
 
 
+def test_a_failed_compile_leaves_no_module(no_build: Path, tmp_path: Path) -> None:
+    """A compiler that fails: a NativeBuildError at the 'compile' step naming its exit
+    status, and no module left behind for a later load to find."""
+    (tmp_path / "Eigen").mkdir()
+    (tmp_path / "Eigen" / "Core").write_text("")
+    with pytest.raises(oo.NativeBuildError) as error:
+        native.build(no_build, compiler="false", eigen=tmp_path, log=lambda line: None)
+    if error.value.step == "headers":
+        pytest.skip("pin is not installed from its PyPI wheels here")
+    assert error.value.step == "compile" and "status 1" in str(error.value)
+    assert not native.binary_path(no_build).exists()
+    assert not list(no_build.rglob("*.so"))
+
+
 def test_the_status_command_says_it_is_not_built(capsys: pytest.CaptureFixture[str]) -> None:
     """``openup-ompl build-native --status`` exits 1 and names the command when nothing
     is built for the versions in use."""

@@ -226,9 +226,8 @@ def build(
         partial.unlink(missing_ok=True)
         raise NativeBuildError(
             "compile",
-            _tail(done.stderr),
-            f"a C++17 compiler is needed (the command: {' '.join(command[:1])} ...); "
-            f"run {BUILD_COMMAND} --force after fixing it",
+            f"{command[0]} exited with status {done.returncode}: {_tail(done.stderr)}",
+            f"a C++17 compiler is needed (--cxx); run {BUILD_COMMAND} again after fixing it",
         )
     os.replace(partial, path)
     (path.parent / "key.json").write_text(json.dumps(key, indent=1, sort_keys=True) + "\n")
