@@ -65,7 +65,18 @@ def machine_info() -> dict[str, Any]:
         "loadavg": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
         "versions": versions,
         "git": git_state(),
+        "native_built": native_built(),
     }
+
+
+def native_built() -> bool | None:
+    """Whether the compiled coupled check is built for the versions in use (then the
+    package's checkers use it unless told ``native="off"``); ``None`` if unknown."""
+    try:
+        from openup_ompl import native
+    except ImportError:
+        return None
+    return native.status()[0]
 
 
 def machine_line(info: dict[str, Any]) -> str:
@@ -73,9 +84,11 @@ def machine_line(info: dict[str, Any]) -> str:
     load = info.get("loadavg")
     load_text = f", load average {load[0]:.2f} at start" if load else ""
     git = f", repository at {info['git']}" if info.get("git") else ""
+    built = info.get("native_built")
+    native = "" if built is None else f", compiled check {'built' if built else 'not built'}"
     return (
         f"Machine: {info['nproc']} cores, {info['cpu_model']}, Python {info['python']} "
-        f"({versions}){load_text}{git}"
+        f"({versions}){load_text}{git}{native}"
     )
 
 

@@ -25,9 +25,15 @@ tables give per variant the median time per check over samples and the median ov
 samples of its time over the fixed-hand check's of the same sample: ratios of checks run
 side by side on the same states, on one (possibly busy) machine.
 
+With ``--native`` the package's checks with the compiled path on (``native="on"``,
+:mod:`openup_ompl.native`; built by ``openup-ompl build-native``) are timed beside them:
+the coupled and fixed-hand checkers, direct and through OMPL, their ``/ fixed`` ratios
+over the compiled fixed-hand check. The Python variants run with ``native="off"``.
+
 Run (about 30 s on 2 idle cores; times are this thread's CPU time)::
 
     python benchmarks/bench_coupling.py
+    openup-ompl build-native && python benchmarks/bench_coupling.py --native
     python benchmarks/bench_coupling.py --states 2000 --rounds 9 --json bench_coupling.json
 """
 
@@ -69,7 +75,18 @@ LABELS = {
     "bare fixed": "bare fixed hand: write `q`, one `pin.computeCollisions`",
     "bare same q": "bare, the law's own `q` precomputed: write it, one `pin.computeCollisions`",
     "FK first": "coupled, forward kinematics first (the order near the grasp)",
+    "compiled coupled": 'compiled coupled (`checker.is_valid`, `native="on"`)',
+    "compiled fixed": 'compiled fixed hand (`checker.is_valid`, `native="on"`)',
+    "compiled coupled via OMPL": "compiled coupled via OMPL (`si.isValid`)",
+    "compiled fixed via OMPL": "compiled fixed hand via OMPL (`si.isValid`)",
 }
+
+
+def base_variant(name: str) -> str:
+    """The fixed-hand check a variant's ``/ fixed`` ratio divides by: the same
+    implementation's (Python or compiled), through OMPL for a coupled check through OMPL."""
+    prefix = "compiled " if name.startswith("compiled ") else ""
+    return prefix + ("fixed via OMPL" if name.endswith("coupled via OMPL") else "fixed")
 
 
 def timed_rounds(
@@ -109,7 +126,7 @@ def paired_ratios(times: dict[str, list[float]]) -> dict[str, dict[str, float]]:
     law's own configuration (``/ same q``), each sample's times side by side."""
     out = {}
     for name, values in times.items():
-        base = times["fixed via OMPL" if name == "coupled via OMPL" else "fixed"]
+        base = times[base_variant(name)]
         same = times["bare same q"]
         out[name] = {
             "/ fixed": float(np.median(np.divide(values, base))),
@@ -159,11 +176,38 @@ def ompl_info(robot: openup_ompl.Robot, checker: CoupledChecker) -> ob.SpaceInfo
     return si
 
 
+def compiled_variants(
+    compiled: tuple[CoupledChecker, CoupledChecker], arms: np.ndarray
+) -> dict[str, Callable[[], list[bool]]]:
+    """The package's checks with the compiled path on (``native="on"``), coupled and
+    fixed hand, direct and through OMPL, each returning its verdicts."""
+    robot = compiled[0].robot
+    lists = [arm.tolist() for arm in arms]
+    checks: dict[str, Callable[[], list[bool]]] = {}
+    for hand, checker in zip(("coupled", "fixed"), compiled, strict=True):
+        si = ompl_info(robot, checker)
+        states = []
+        for arm in lists:
+            state = si.allocState()
+            state[0 : robot.arm_idx.size] = arm
+            states.append(state)
+        call = checker.is_valid
+        checks[f"compiled {hand}"] = lambda call=call: [call(a) for a in lists]
+        checks[f"compiled {hand} via OMPL"] = lambda si=si, states=states: [
+            si.isValid(s) for s in states
+        ]
+    return checks
+
+
 def variants(
-    law_checker: CoupledChecker, fixed_checker: CoupledChecker, arms: np.ndarray
+    law_checker: CoupledChecker,
+    fixed_checker: CoupledChecker,
+    arms: np.ndarray,
+    compiled: tuple[CoupledChecker, CoupledChecker] | None = None,
 ) -> tuple[dict[str, Callable[[], list[bool]]], dict[str, list[np.ndarray]]]:
     """The measured checks of ``arms`` (each returning its verdicts), and the full
-    configurations each one checks (for the reference)."""
+    configurations each one checks (for the reference); the compiled checks too when
+    ``compiled`` (coupled and fixed-hand checkers with ``native="on"``) is given."""
     robot = law_checker.robot
     dof = robot.arm_idx.size
     lists = [arm.tolist() for arm in arms]
@@ -234,18 +278,27 @@ def variants(
         "bare same q": bare_same_q,
         "FK first": fk_first,
     }
+    if compiled is not None:
+        checks.update(compiled_variants(compiled, arms))
     configurations = {name: fixed_qs if "fixed" in name else law_qs for name in checks}
     return checks, configurations
 
 
 def bench_robot(robot_name: str, args: argparse.Namespace) -> dict[str, Any]:
     problem = openup_ompl.load_scene(SCENES[robot_name])
-    setup = openup_ompl.GraspPlanningSetup(problem)
+    setup = openup_ompl.GraspPlanningSetup(problem, native="off")
     law_checker = setup.checker
     law = law_checker.law
+    fixed_law = law.with_options(fixed=law.high)
     fixed_checker = CoupledChecker(
-        problem, law.with_options(fixed=law.high), resolution=law_checker.resolution
+        problem, fixed_law, resolution=law_checker.resolution, native="off"
     )
+    compiled = None
+    if args.native:
+        compiled = tuple(
+            CoupledChecker(problem, each, resolution=law_checker.resolution, native="on")
+            for each in (law, fixed_law)
+        )
     law_world, fixed_world = law_checker.finest_world, fixed_checker.finest_world
     assert law_world.padding == fixed_world.padding
     assert np.array_equal(law_world.margins, fixed_world.margins)
@@ -265,8 +318,9 @@ def bench_robot(robot_name: str, args: argparse.Namespace) -> dict[str, Any]:
         checks = []
         valid = hands_differ = 0
         for chunk in chunks:
-            chunk_checks, configurations = variants(law_checker, fixed_checker, chunk)
-            valid += sum(verify(law_checker, fixed_checker, chunk_checks, configurations))
+            chunk_checks, configurations = variants(law_checker, fixed_checker, chunk, compiled)
+            checkers = [law_checker, fixed_checker, *(compiled or ())]
+            valid += sum(verify(checkers, chunk_checks, configurations))
             hands_differ += sum(
                 not np.array_equal(a, b)
                 for a, b in zip(configurations["coupled"], configurations["fixed"], strict=True)
@@ -287,17 +341,18 @@ def bench_robot(robot_name: str, args: argparse.Namespace) -> dict[str, Any]:
 
 
 def verify(
-    law_checker: CoupledChecker,
-    fixed_checker: CoupledChecker,
+    checkers: list[CoupledChecker],
     checks: dict[str, Callable[[], list[bool]]],
     configurations: dict[str, list[np.ndarray]],
 ) -> list[bool]:
     """Run every check once and compare its verdicts with the reference's (exit on a
-    difference); return the coupled configurations' reference verdicts."""
+    difference); return the coupled configurations' reference verdicts. ``checkers``:
+    the coupled checker first, then the others (forgotten before each check)."""
+    law_checker = checkers[0]
     references = {id(qs): reference_verdicts(law_checker, qs) for qs in configurations.values()}
     for name, check in checks.items():
-        law_checker.forget()
-        fixed_checker.forget()
+        for checker in checkers:
+            checker.forget()
         got = check()
         expected = references[id(configurations[name])]
         wrong = [i for i, (a, b) in enumerate(zip(got, expected, strict=True)) if a != b]
@@ -330,6 +385,8 @@ def report(info: dict[str, Any], results: dict[str, Any], args: argparse.Namespa
         for set_name, s in entry["sets"].items():
             med, ratios = s["median_s_per_state"], s["ratios"]
             for key, label in LABELS.items():
+                if key not in med:
+                    continue
                 rows.append(
                     [
                         robot_name,
@@ -363,6 +420,12 @@ def main() -> None:
     parser.add_argument("--chunk", type=int, default=250, help="states per sample (250)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the states")
     parser.add_argument("--json", metavar="PATH", help="also write the results as JSON")
+    parser.add_argument(
+        "--native",
+        action="store_true",
+        help="also time the package's checks with the compiled path on (native='on'; "
+        "build it first: openup-ompl build-native)",
+    )
     args = parser.parse_args()
     if args.states < 1 or args.chunk < 1 or args.rounds < 2:
         parser.error("--states and --chunk must be positive, --rounds at least 2")

@@ -1,7 +1,7 @@
 """The coupled check compiled: whether C++ removes the price of coupling near the grasp.
 
-The prototype in ``benchmarks/native/`` (``coupled_check.cpp``, built by
-``bash benchmarks/native/build.sh``) does the whole single-state check of
+The compiled module of :mod:`openup_ompl.native` (``coupled_check.cpp``, built by
+``openup-ompl build-native``), called here directly, does the whole single-state check of
 ``StateChecker.is_valid`` at the finest margin in one call: the arm joints' placements,
 the palm frame, ``d``, the law's hand, the hand joints' placements (forward kinematics
 once), the geometry placements and Coal's naive broadphase query, on the same Pinocchio
@@ -25,7 +25,7 @@ on the same chunk.
 
 Run (about 40 s on 2 idle cores, after building the extension)::
 
-    bash benchmarks/native/build.sh
+    openup-ompl build-native
     python benchmarks/bench_native.py
     python benchmarks/bench_native.py --states 2000 --rounds 9 --json bench_native.json
 """
@@ -48,9 +48,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import _common  # noqa: E402
 import bench_coupling  # noqa: E402
-from native import native_check  # noqa: E402
 
 import openup_ompl  # noqa: E402
+from openup_ompl import native  # noqa: E402
 from openup_ompl.hand_law import DISTANCE_KINDS  # noqa: E402
 from openup_ompl.ompl_setup import arm_state_space  # noqa: E402
 from openup_ompl.validity import CoupledChecker  # noqa: E402
@@ -174,17 +174,21 @@ def verify(
 
 def bench_robot(robot_name: str, args: argparse.Namespace) -> dict[str, Any]:
     problem = openup_ompl.load_scene(bench_coupling.SCENES[robot_name])
-    setup = openup_ompl.GraspPlanningSetup(problem)
+    setup = openup_ompl.GraspPlanningSetup(problem, native="off")
     law_checker = setup.checker
     law = law_checker.law
     if law.distance != args.distance:
         law = law.with_options(distance=args.distance)
-        law_checker = CoupledChecker(problem, law, resolution=law_checker.resolution)
+        law_checker = CoupledChecker(problem, law, resolution=law_checker.resolution, native="off")
     fixed_checker = CoupledChecker(
-        problem, law.with_options(fixed=law.high), resolution=law_checker.resolution
+        problem, law.with_options(fixed=law.high), resolution=law_checker.resolution, native="off"
     )
     checkers = {"coupled": law_checker, "fixed": fixed_checker}
-    natives = {hand: native_check.native_check(checker) for hand, checker in checkers.items()}
+    module = native.load()
+    natives = {
+        hand: native.compiled_check(module, checker, checker.finest_world)
+        for hand, checker in checkers.items()
+    }
     rng = np.random.default_rng(args.seed)
     robot = problem.robot
     sets = {

@@ -374,3 +374,36 @@ class PlanRejected(ConfigError):
         self.reason = reason
         self.where, self.value, self.expected = f"{where}path[{self.row}]", reason, expected
         OpenUpError.__init__(self, f"{self.where}: {reason}; expected {expected}")
+
+
+class NativeUnavailable(OpenUpError, ImportError):
+    """The compiled coupled check cannot be used here (:mod:`openup_ompl.native`): it is
+    not built for the pinocchio, coal and Python in use, it was built against other
+    versions of them, or it would not be exact for the law asked for.
+
+    Attributes:
+        reason: Why it cannot be used.
+        remedy: What would make it usable (e.g. ``openup-ompl build-native``).
+    """
+
+    def __init__(self, reason: str, remedy: str) -> None:
+        self.reason = reason
+        self.remedy = remedy
+        super().__init__(f"the compiled coupled check is unavailable: {reason}; {remedy}")
+
+
+class NativeBuildError(OpenUpError, RuntimeError):
+    """Building the compiled coupled check failed (``openup-ompl build-native``).
+
+    Attributes:
+        step: The step that failed: ``"compiler"``, ``"headers"``, ``"eigen"``,
+            ``"compile"`` or ``"load"``.
+        detail: What went wrong (the tool's last lines of output where there are some).
+        remedy: What to do about it.
+    """
+
+    def __init__(self, step: str, detail: str, remedy: str) -> None:
+        self.step = step
+        self.detail = detail
+        self.remedy = remedy
+        super().__init__(f"building the compiled check failed at '{step}': {detail}; {remedy}")

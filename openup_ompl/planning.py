@@ -85,6 +85,7 @@ class GraspPlanningSetup:
         ConfigError: A bad option.
         InvalidProblem: The start collides, or is already at the grasp pose.
         UnreachableGrasp: No collision-free IK solution of the grasp pose was found.
+        NativeUnavailable: ``native="on"`` and the compiled check is unavailable.
 
     Attributes:
         problem: The problem as given.
@@ -119,6 +120,7 @@ class GraspPlanningSetup:
         time_limit: float | None = None,
         simplify: bool | None = None,
         simplify_rounds: int | None = None,
+        native: str | None = None,
     ) -> None:
         if options is None:
             options = PlanningOptions()
@@ -140,6 +142,7 @@ class GraspPlanningSetup:
             time_limit=time_limit,
             simplify=simplify,
             simplify_rounds=simplify_rounds,
+            native=native,
         )
         if not isinstance(problem, Problem):
             raise ConfigError("problem", problem, "a Problem (load_scene(path))")
@@ -150,7 +153,11 @@ class GraspPlanningSetup:
         self.ikbirrt_options = options.ikbirrt_options or IKBiRRTOptions()
         self.space = arm_state_space(problem.robot)
         self.checker = CoupledChecker(
-            problem, self.law, resolution=options.resolution, padding=options.padding
+            problem,
+            self.law,
+            resolution=options.resolution,
+            padding=options.padding,
+            native=options.native,
         )
         self.simple_setup, self.validity_checker, self.motion_validator = coupled_simple_setup(
             self.space, self.checker

@@ -22,6 +22,7 @@ from openup_ompl.exceptions import ConfigError
 from openup_ompl.goal import MAX_RETREAT
 from openup_ompl.hand_law import HandLaw
 from openup_ompl.ik import IKOptions
+from openup_ompl.native import NATIVE_MODES
 from openup_ompl.planners.ikbirrt import IKBiRRTOptions
 from openup_ompl.scene import Problem
 from openup_ompl.validity import DEFAULT_RESOLUTION, RESOLUTION_MAX, RESOLUTION_MIN
@@ -203,6 +204,10 @@ class PlanningOptions:
             grows its own retreat (``ikbirrt_options.retreat``) and ignores it. The
             default, IKBiRRT's retreat, measured faster with ``rrtconnect`` and the law on
             the problem suites.
+        native: The compiled coupled check (:mod:`openup_ompl.native`, built by
+            ``openup-ompl build-native``): ``"auto"`` uses it when it is built for the
+            pinocchio and coal in use and exact for the law, ``"on"`` requires it,
+            ``"off"`` never uses it. The same verdicts and plans either way.
     """
 
     u: float | None = None
@@ -220,6 +225,7 @@ class PlanningOptions:
     max_goal_samples: int = 25
     planner_range: float = 0.4  # [rad]
     pregrasp: float = 0.1  # [m]
+    native: str = "auto"
 
     def __post_init__(self) -> None:
         if self.u is not None and not (_toml.is_number(self.u) and 0 <= self.u <= 1):
@@ -256,6 +262,8 @@ class PlanningOptions:
             if value is not None and not isinstance(value, kind):
                 raise ConfigError(name, value, f"None or an {kind.__name__}")
         _toml.number(self.pregrasp, "pregrasp", low=0.0, high=MAX_RETREAT)
+        if not isinstance(self.native, str) or self.native not in NATIVE_MODES:
+            raise ConfigError("native", self.native, f"one of {list(NATIVE_MODES)}")
 
     def overridden(self, **changes: Any) -> PlanningOptions:
         """These options with some fields replaced.

@@ -8,13 +8,16 @@ check places), bounding ``d`` where that spares forward kinematics.
 from __future__ import annotations
 
 import math
+import threading
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
+from openup_ompl import native as _native
 from openup_ompl._model import selector
 from openup_ompl._toml import is_finite, is_integer
-from openup_ompl.collision import CollisionWorld, ThreadContext
+from openup_ompl.collision import PARALLEL_MIN_STATES, CollisionWorld, ThreadContext
 from openup_ompl.exceptions import ConfigError, InvalidProblem
 from openup_ompl.hand_law import HandLaw, NormalizedDistance, palm_distance
 from openup_ompl.ik import MAX_POSITION_TOLERANCE
@@ -67,9 +70,15 @@ class StateChecker:
             own links (see :func:`~openup_ompl.collision.self_margins`); halvings of it
             (:data:`REFINE_LEVELS`) are the finer margins.
         coarse_levels: Doublings of the padding tried first (:data:`COARSE_LEVELS`).
+        native: The compiled check (:mod:`openup_ompl.native`) for single states, ``d`` and
+            the batches checked in the calling thread: ``"auto"`` if it is built for the
+            versions in use and exact for the law, ``"on"`` always (else
+            :class:`~openup_ompl.exceptions.NativeUnavailable`), ``"off"`` never. The
+            verdicts, ``d``, the remembered free states and the counts are the same.
 
     Raises:
-        ConfigError: A bad padding or number of coarse levels.
+        ConfigError: A bad padding, number of coarse levels or ``native``.
+        NativeUnavailable: ``native="on"`` and the compiled check cannot be used.
         InvalidProblem: A start too close to the grasp for the law
             (:data:`MIN_START_DISTANCE`, :data:`MIN_LAW_TRAVEL`).
 
@@ -80,6 +89,7 @@ class StateChecker:
         goal_distance: Algorithm 1's normalised distance to the grasp.
         states_checked: States checked so far (a free state :meth:`is_valid` remembers is
             not checked, nor counted, again).
+        native: Whether the compiled check is in use (see the ``native`` argument).
     """
 
     def __init__(
@@ -89,6 +99,7 @@ class StateChecker:
         world: CollisionWorld | None,
         padding: float,
         coarse_levels: int,
+        native: str = "auto",
     ) -> None:
         if not (is_finite(padding) and padding >= 0):
             raise ConfigError("padding", padding, "a distance >= 0 [m]")
@@ -131,6 +142,9 @@ class StateChecker:
         # Whether the last state checked lay near the grasp (NEAR_HINT; only a hint).
         self._near = False
         self._near_limit = NEAR_HINT * self.law.mga
+        self._compiled: Any = _native.resolve(native, self.law)  # and each thread's checks:
+        self._compiled_local = threading.local()
+        self.native = self._compiled is not None
 
     def normalized_distance(self, arm: np.ndarray) -> float:
         """Normalised palm-to-grasp distance ``d`` (Algorithm 1) of an arm configuration.
@@ -238,7 +252,9 @@ class StateChecker:
         model, data, manager, q = self._model, context.data, context.manager, context.q
         law = self.law
         collides = None
-        if law.fixed_clipped is not None or self._near:  # forward kinematics for d first
+        if self._compiled is not None:  # the same query, d bit for bit (openup_ompl.native)
+            collides, d = self._compiled_state(arm, key is not None)
+        elif law.fixed_clipped is not None or self._near:  # forward kinematics for d first
             d = self._fill(context, arm)
             self._near = d <= self._near_limit
         else:  # the plateau's hand first, d from the placements the query leaves
@@ -263,6 +279,36 @@ class StateChecker:
                 self._known_valid.clear()
             self._known_valid[key] = d
         return free, d
+
+    def _compiled_state(self, arm: Any, array: bool) -> tuple[bool, float]:
+        """``(collides, d)`` of the arm state (a float64 array if ``array``), compiled."""
+        try:
+            check = self._compiled_local.finest
+        except AttributeError:
+            check = self._compiled_checks()[-1]
+        return not check.is_valid(arm.tolist() if array else arm), check.distance
+
+    def _compiled_checks(self) -> list[Any]:
+        """This thread's compiled checks, one per world of :attr:`paddings` (on this
+        thread's contexts; created on first use)."""
+        try:
+            return self._compiled_local.checks  # type: ignore[no-any-return]
+        except AttributeError:
+            checks = [_native.compiled_check(self._compiled, self, w) for w in self._worlds]
+            self._compiled_local.checks = checks
+            self._compiled_local.finest = checks[-1]
+            return checks
+
+    def _batch_collides(self, level: int, qs: np.ndarray, stop_at_first: bool = True) -> np.ndarray:
+        """Flags of the columns of ``qs`` colliding in the world of ``paddings[level]``:
+        :meth:`~openup_ompl.collision.CollisionWorld.batch_in_collision`, its batches checked
+        in this thread through the compiled loop when in use (the same query, flags)."""
+        world = self._worlds[level]
+        serial = world.num_threads == 1 or qs.shape[1] < PARALLEL_MIN_STATES
+        if self._compiled is None or not serial:
+            return world.batch_in_collision(qs, stop_at_first)
+        flags = self._compiled_checks()[level].collides_columns(qs, stop_at_first)
+        return np.array(flags, dtype=bool)
 
     def is_valid_with_hand(self, arm: np.ndarray, hand: np.ndarray) -> bool:
         """Whether the arm configuration with the given hand is collision-free.
@@ -304,6 +350,8 @@ class StateChecker:
 
     def _palm_distance(self, context: ThreadContext, q: np.ndarray) -> float:
         """``d`` at the full configuration ``q`` (forward kinematics in ``context``)."""
+        if self.native and self._translation_only:  # the compiled d, bit for bit
+            return self._compiled_checks()[-1].distance_q(q)  # type: ignore[no-any-return]
         pin.forwardKinematics(self._model, context.data, q)
         return self._placed_distance(context)
 
@@ -419,13 +467,13 @@ class StateChecker:
             level = int(levels[pending].min())
             batch = pending[levels[pending] == level]
             states = qs if batch.size == qs.shape[1] else np.asfortranarray(qs[:, batch])
-            flags = self._worlds[level].batch_in_collision(states, stop_at_first=False)
+            flags = self._batch_collides(level, states, stop_at_first=False)
             hit = batch[flags]
             if hit.size and level == finest:
                 return None
             if hit.size and not tried_finest:
                 tried_finest = True
-                if np.any(self.finest_world.batch_in_collision(np.asfortranarray(qs[:, hit]))):
+                if np.any(self._batch_collides(-1, np.asfortranarray(qs[:, hit]))):
                     return None
             levels[hit] += 1
             pending = pending[levels[pending] != level]

@@ -121,9 +121,11 @@ class CoupledChecker(StateChecker):
             cut finer; ``0`` turns the guarantee off.
         coarse_levels: Doublings of the padding and of the first pass's spacing
             (:data:`COARSE_LEVELS`); ``0`` checks every motion at ``resolution`` directly.
+        native: The compiled check (see :class:`~openup_ompl.state_check.StateChecker`).
 
     Raises:
-        ConfigError: A bad resolution, padding or number of coarse levels.
+        ConfigError: A bad resolution, padding, number of coarse levels or ``native``.
+        NativeUnavailable: ``native="on"`` and the compiled check is unavailable.
         InvalidProblem: A start too close to the grasp for the law (:data:`MIN_START_DISTANCE`,
             :data:`MIN_LAW_TRAVEL`), before any check uses it.
 
@@ -152,13 +154,14 @@ class CoupledChecker(StateChecker):
         resolution: float = DEFAULT_RESOLUTION,
         padding: float | None = None,
         coarse_levels: int = COARSE_LEVELS,
+        native: str = "auto",
     ) -> None:
         if not (is_number(resolution) and RESOLUTION_MIN <= resolution <= RESOLUTION_MAX):
             raise ConfigError(
                 "resolution", resolution, f"a length in [{RESOLUTION_MIN:g}, {RESOLUTION_MAX:g}] m"
             )
         padding = resolution / 2 if padding is None else padding
-        super().__init__(problem, law, world, padding, coarse_levels)
+        super().__init__(problem, law, world, padding, coarse_levels, native)
         self.resolution = float(resolution)
         self.coarse_resolution = self.resolution * 2.0**self._coarse
         self.bound = ResolutionBound(self.robot, self.law, self.goal_distance.start_distance)
@@ -188,11 +191,8 @@ class CoupledChecker(StateChecker):
             (self.normalized_distance(a), self.normalized_distance(b)) if ends is None else ends
         )
         spread = float(self.distance_rates @ np.abs(b - a))
-        return self.plateau_weights if self._on_plateau(da, db, spread) else self.motion_weights
-
-    def _on_plateau(self, da: float, db: float, spread: float) -> bool:
-        """See :meth:`~openup_ompl.resolution_bound.ResolutionBound.on_plateau`."""
-        return self.bound.on_plateau(da, db, spread)
+        plateau = self.bound.on_plateau(da, db, spread)
+        return self.plateau_weights if plateau else self.motion_weights
 
     def _motion_spread(
         self, a: np.ndarray, b: np.ndarray, abs_delta: np.ndarray, spread: float | None = None
@@ -293,10 +293,10 @@ class CoupledChecker(StateChecker):
         if fingers_move:
             da = self._known_valid.get(a.tobytes())
             ends = (self.normalized_distance(a) if da is None else da, db)
-            fingers_move = not self._on_plateau(*ends, spread)
+            fingers_move = not self.bound.on_plateau(*ends, spread)
         if fingers_move and self.bound.local_terms is not None:
             spread = self._motion_spread(a, b, abs_delta, spread)
-            fingers_move = not self._on_plateau(*ends, spread)
+            fingers_move = not self.bound.on_plateau(*ends, spread)
         arm = float(abs_delta @ self.plateau_weights)
         fingers = self.bound.hand_rate * spread if fingers_move else 0.0
         window = 1.0
@@ -354,7 +354,7 @@ class CoupledChecker(StateChecker):
                 a, bound.delta, np.arange(n + 1) / n, bound.ends, bound.spread, bound.plateau
             )
             self.states_checked += n + 1
-            return not np.any(self.finest_world.batch_in_collision(qs))
+            return not np.any(self._batch_collides(-1, qs))
         # The first round counts the fingers where they move at an end; elsewhere the
         # rounds after it cut the intervals where d comes near mga.
         moving = bound.fingers * bound.window if min(bound.ends) <= self.law.mga else 0.0
@@ -452,7 +452,7 @@ class CoupledChecker(StateChecker):
         collides with every wider margin too), for a few states instead of the whole round."""
         probe = np.asfortranarray(qs[:, PROBE_STRIDE // 2 :: PROBE_STRIDE])
         self.states_checked += probe.shape[1]
-        return bool(np.any(self.finest_world.batch_in_collision(probe)))
+        return bool(np.any(self._batch_collides(-1, probe)))
 
 
 class CoupledValidityChecker(ob.StateValidityChecker):

@@ -7,7 +7,7 @@ Only the batches of fewer than ``collision.PARALLEL_MIN_STATES`` states are repl
 larger ones go to Pinocchio's thread pool, already compiled. Every flag of the compiled
 loop is compared with the Python one's (the script fails on a difference).
 
-Run (about 30 s, after ``bash benchmarks/native/build.sh``)::
+Run (about 30 s, after ``openup-ompl build-native``)::
 
     python benchmarks/native/batch_replay.py
 """
@@ -16,20 +16,16 @@ from __future__ import annotations
 
 import argparse
 import gc
-import sys
 import time
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 from ompl import util as ou
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-
-import openup_ompl  # noqa: E402
-from native import native_check  # noqa: E402
-from openup_ompl._resources import data_dir  # noqa: E402
-from openup_ompl.collision import PARALLEL_MIN_STATES, CollisionWorld  # noqa: E402
+import openup_ompl
+from openup_ompl import native
+from openup_ompl._resources import data_dir
+from openup_ompl.collision import PARALLEL_MIN_STATES, CollisionWorld
 
 ROBOTS = ("panda", "lwa3_sdh", "ur5_allegro")
 
@@ -48,7 +44,7 @@ def record(problem: openup_ompl.Problem, seeds: int, limit: float) -> tuple[Any,
     CollisionWorld.batch_in_collision = spy  # type: ignore[method-assign]
     try:
         for seed in range(seeds):
-            setup = openup_ompl.GraspPlanningSetup(problem)
+            setup = openup_ompl.GraspPlanningSetup(problem, native="off")
             setup.solve(limit, "ikbirrt", seed)
     finally:
         CollisionWorld.batch_in_collision = original  # type: ignore[method-assign]
@@ -59,9 +55,10 @@ def replay(problem: openup_ompl.Problem, args: argparse.Namespace) -> dict[str, 
     setup, calls = record(problem, args.seeds, args.time)
     checker = setup.checker
     natives = {}
+    module = native.load()
     for world, _, _ in calls:
         if id(world) not in natives:
-            natives[id(world)] = native_check.native_check(checker, world)
+            natives[id(world)] = native.compiled_check(module, checker, world)
     for world, qs, stop in calls:
         expected = world.batch_in_collision(qs, stop).tolist()
         got = natives[id(world)].collides_columns(qs, stop)

@@ -1,6 +1,7 @@
 """Where planning's time goes: the share of ``GraspPlanningSetup.solve`` spent in single
-state checks (which the compiled check replaces) and in motion checks (which it does
-not), under cProfile.
+state checks (which the compiled check replaces) and in motion checks (whose serial
+batches' query loop it replaces, not the states' placement and hands), under cProfile;
+with the Python check (``--native off``, the default) or the compiled one (``on``).
 
 Run (about 10 s)::
 
@@ -25,8 +26,9 @@ from openup_ompl._resources import data_dir
 FUNCTIONS = {
     ("state_check.py", "_check_state"): "single states (`StateChecker._check_state`)",
     ("validity.py", "check_motion"): "motions (`CoupledChecker.check_motion`)",
-    ("collision.py", "batch_in_collision"): "  of which batches (`batch_in_collision`)",
-    ("state_check.py", "_set_hands"): "  of which the batches' hands (`_set_hands`)",
+    ("state_check.py", "_batch_collides"): "  batches (`_batch_collides`, the re-check's too)",
+    ("state_check.py", "_set_hands"): "  the batches' hands (`_set_hands`)",
+    ("collision.py", "batch_in_collision"): "`CollisionWorld.batch_in_collision` (all callers)",
 }
 
 
@@ -39,6 +41,7 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=2, help="seeds per problem (2)")
     parser.add_argument("--time", type=float, default=5.0, help="time limit [s] (5)")
     parser.add_argument("--planner", default="ikbirrt", help="planner (ikbirrt)")
+    parser.add_argument("--native", choices=["off", "on"], default="off", help="(off)")
     args = parser.parse_args()
     ou.setLogLevel(ou.LOG_ERROR)
     files = sorted(args.problems.glob("*.toml"))[: args.count]
@@ -47,7 +50,7 @@ def main() -> None:
     for path in files:
         problem = openup_ompl.load_scene(path)
         for seed in range(args.seeds):
-            setup = openup_ompl.GraspPlanningSetup(problem)
+            setup = openup_ompl.GraspPlanningSetup(problem, native=args.native)
             profile.enable()
             setup.solve(args.time, args.planner, seed)
             profile.disable()

@@ -35,5 +35,6 @@ COMMANDS: tuple[Command, ...] = (
     Command("robustness", "openup_ompl.cli.robustness"),
     Command("perceive", "openup_ompl.cli.perceive"),
     Command("closed-loop", "openup_ompl.cli.closed_loop"),
+    Command("build-native", "openup_ompl.cli.build_native"),
     Command("study", "openup_ompl.study.cli", optional=True),
 )

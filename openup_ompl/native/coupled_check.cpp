@@ -1,9 +1,9 @@
 // The coupled single-state check of openup_ompl.state_check, compiled: arm joints ->
 // forward kinematics -> the palm's normalised distance d to the grasp -> the hand law ->
-// the hand joints' placements -> Coal's broadphase query. A prototype measured by
-// benchmarks/bench_native.py; built by benchmarks/native/build.sh against the pin/coal
-// wheels' headers and libraries (boost.python, so that the Python objects pin.Model,
-// pin.Data and the broadphase manager are used in place, without copies).
+// the hand joints' placements -> Coal's broadphase query. Optional: built on the user's
+// machine by `openup-ompl build-native` (openup_ompl/native/_build.py) against the pin and
+// coal wheels' headers and libraries, loaded by openup_ompl.native (boost.python, so that
+// the Python objects pin.Data and the broadphase manager are used in place, without copies).
 #include <boost/python.hpp>
 #include <boost/version.hpp>
 
@@ -202,6 +202,26 @@ class CoupledCheck {
     return out;
   }
 
+  // d at a full configuration (a float64 array of nq values, any stride): the arm joints'
+  // placements and the palm's, as StateChecker._palm_distance computes it (the hand
+  // joints move no frame d reads). Leaves distance unchanged.
+  double distance_q(bp::object q) {
+    Py_buffer view;
+    if (PyObject_GetBuffer(q.ptr(), &view, PyBUF_STRIDES | PyBUF_FORMAT) != 0)
+      bp::throw_error_already_set();
+    const bool ok = view.ndim == 1 && view.shape[0] == model_.nq && view.format != nullptr &&
+                    std::string(view.format) == "d";
+    if (!ok) {
+      PyBuffer_Release(&view);
+      throw std::invalid_argument("q: a float64 array of nq values");
+    }
+    const char* base = static_cast<const char*>(view.buf);
+    for (long i : arm_) q_[i] = *reinterpret_cast<const double*>(base + i * view.strides[0]);
+    PyBuffer_Release(&view);
+    for (auto j : arm_joints_) step(j);
+    return palm_distance();
+  }
+
   double distance() const { return distance_; }
 
  private:
@@ -270,7 +290,7 @@ class CoupledCheck {
 
 BOOST_PYTHON_MODULE(_coupled_check) {
   // The versions compiled against: the module uses the Python objects' C++ types in
-  // place, so it may only run with these very builds (native_check.load checks them).
+  // place, so it may only run with these very builds (openup_ompl.native.load checks them).
   bp::dict built_with;
   built_with["pinocchio"] = PINOCCHIO_VERSION;
   built_with["coal"] = COAL_VERSION;
@@ -289,6 +309,8 @@ BOOST_PYTHON_MODULE(_coupled_check) {
       .def("collides_columns", &CoupledCheck::collides_columns,
            bp::args("self", "qs", "stop_at_first"),
            "Collision flags of the columns of a float64 (nq, n) array, one by one.")
+      .def("distance_q", &CoupledCheck::distance_q, bp::args("self", "q"),
+           "d at a full configuration (a float64 array of nq values).")
       .add_property("distance", &CoupledCheck::distance,
                     "d at the last state checked (inf for a fixed hand).");
 }
