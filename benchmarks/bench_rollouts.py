@@ -7,7 +7,7 @@ twice; ``--per-plan`` of the sweep's 21 perturbations each), run as a sweep work
 it: one :class:`~openup_ompl.physics.Rollout` per plan (built from the plan's file
 contents), every perturbation through it, no frames. "Before" is the package at
 ``--baseline`` (a git revision, extracted with ``git archive``; default: the parent of
-the commit whose message starts with "Rollout speed-ups"), "after" this tree with the
+the first commit whose message starts with "Rollout speed-ups"), "after" this tree with the
 sweep's settings (``PhysicsOptions(early_end=True)``; compiled worlds reused across plans
 of one scene). Each run is a fresh worker process; the runs alternate before / after
 ``--rounds`` times, so both see the same machine load; the ratio is per round, then its
@@ -66,12 +66,12 @@ def worker(per_plan: int, fast: bool) -> dict[str, object]:
 
 def _baseline_revision() -> str:
     found = subprocess.run(
-        ["git", "log", "-1", f"--grep=^{MARK}", "--format=%H"],
+        ["git", "log", f"--grep=^{MARK}", "--format=%H"],
         cwd=ROOT, capture_output=True, text=True, check=False,
-    ).stdout.strip()  # fmt: skip
+    ).stdout.split()[-1:]  # fmt: skip
     if not found:
         raise SystemExit(f"no commit starting with {MARK!r}: pass --baseline REV")
-    return f"{found}~1"
+    return f"{found[0]}~1"
 
 
 def _extract(revision: str, into: Path) -> Path:

@@ -115,3 +115,50 @@ def test_a_world_is_compiled_once_and_its_copy_takes_new_poses(contents, monkeyp
     assert second.world.model.opt.timestep == pytest.approx(0.002)
     record = second.run(frames=True)
     assert record.frames["neighbours"]["jar"][0][:3] == pytest.approx([0.5, -0.35, 0.05], abs=1e-3)
+
+
+def test_the_watch_sensors_say_what_the_contact_list_holds(contents, monkeypatch):
+    """At every step of a rollout whose hand pushes the block and squeezes the can, the
+    watch's sensors give the contact list's counts and least distances: the object on
+    the obstacles, the robot's moving links on the object, and on obstacles and
+    neighbours; their robot parts are the robot's moving geoms."""
+    import mujoco
+
+    from openup_ompl.physics import monitor as monitor_module
+    from openup_ompl.physics.world import OBJECT, OBSTACLE, ROBOT
+
+    step, seen = monitor_module.Monitor.step, {"gripped": 0, "touching": 0}
+
+    def checked(self):
+        step(self)
+        sim, kinds, watch = self.sim, self.world.geom_kind, self.world.watch
+        pairs = [sorted((int(kinds[a]), int(kinds[b]))) for a, b in sim.contact.geom[: sim.ncon]]
+        dist = sim.contact.dist[: sim.ncon]
+        s = sim.sensordata
+        for kind, at in (((OBSTACLE, OBJECT), watch.pressed), ((ROBOT, OBJECT), watch.gripped[0])):
+            mine = [d for p, d in zip(pairs, dist, strict=True) if p == sorted(kind)]
+            assert s[at] == len(mine)
+            assert not mine or s[at + 1] == min(mine)
+        touching = sum(p in ([ROBOT, OBSTACLE], [ROBOT, NEIGHBOUR]) for p in pairs)
+        assert sum(s[i] for i in watch.touching) == touching
+        seen["gripped"] += bool(s[watch.gripped[0]])
+        seen["touching"] += bool(touching)
+
+    monkeypatch.setattr(monitor_module.Monitor, "step", checked)
+    Rollout(contents).run(frames=False)  # the block in the way
+    without_block = {**contents, "scene": {**contents["scene"], "obstacles": [
+        o for o in contents["scene"]["obstacles"] if o["name"] != "block"]}}  # fmt: skip
+    Rollout(without_block).run(frames=False)  # the can held
+    assert seen["gripped"] > 1000 and seen["touching"] > 100, seen
+    world = build_world(contents)
+    model, kinds = world.model, world.geom_kind
+    subtree = mujoco.mjtObj.mjOBJ_XBODY
+    roots = {int(model.sensor_objid[i]) for i in range(model.nsensor)
+             if model.sensor_objtype[i] == subtree}  # fmt: skip
+
+    def under_a_root(body):
+        while body and body not in roots:
+            body = int(model.body_parentid[body])
+        return body in roots
+
+    assert [under_a_root(int(b)) for b in model.geom_bodyid] == list(kinds == ROBOT)

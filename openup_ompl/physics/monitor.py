@@ -129,12 +129,22 @@ class Monitor:
         self.touch_step: int | None = None
         self.ended: dict[str, Any] | None = None
         self.early_end = early_end
+        import mujoco
+
         model = world.model
         self._ngeom = int(model.ngeom)
         self._classes = _pair_classes(world.geom_kind)
         self._seen = np.zeros(self._ngeom * self._ngeom, dtype=bool)
         self._in_order = bool(np.array_equal(world.actuator, np.arange(model.nu)))
         self._rest_checks = 0
+        # Views into the simulation's arrays (fixed for its lifetime) and MuJoCo's step.
+        self._sim_ctrl, self._qpos, self._sensors = sim.ctrl, sim.qpos, sim.sensordata
+        self._height = world.object_qpos + 2
+        self._mj_step = mujoco.mj_step
+        watch = world.watch
+        self._pressed = watch.pressed
+        self._gripped = watch.gripped
+        self._touching = watch.touching
 
     @property
     def time(self) -> float:
@@ -142,27 +152,45 @@ class Monitor:
         return self.steps * self.dt
 
     def step(self) -> None:
-        """One simulation step at :attr:`ctrl`, then the watch."""
-        import mujoco
-
+        """One simulation step at :attr:`ctrl`, then the watch: the object's height, and
+        the contacts through the watch's sensors (:mod:`~openup_ompl.physics.watch`);
+        MuJoCo's contact list is read one contact at a time only on steps where a robot
+        link touches a fixed obstacle or a neighbour, or touches the object while a first
+        touch may still be recorded."""
         world, sim = self.world, self.sim
         if self._in_order:
-            sim.ctrl[:] = self.ctrl
+            self._sim_ctrl[:] = self.ctrl
         else:
             sim.ctrl[world.actuator] = self.ctrl
-        mujoco.mj_step(world.model, sim)
+        self._mj_step(world.model, sim)
         self.steps += 1
-        height = sim.qpos[world.object_qpos + 2]
+        height = self._qpos[self._height]
         if self.sunk is None and height < self.floor:
             self.sunk = self.phase
-        if self.phase in ("lift", "hold") and height > self.top:
+        if height > self.top and self.phase in ("lift", "hold"):
             self.top = float(height)
-        if sim.ncon:
+        sensors = self._sensors
+        if sensors[self._pressed]:
+            # The deepest penetration: -min(dist) is max(-dist) to the last bit.
+            deepest = -float(sensors[self._pressed + 1])
+            if deepest > self.pressed:
+                self.pressed, self.pressed_phase = deepest, self.phase
+        gripped = False
+        for i in self._gripped:
+            if sensors[i]:
+                gripped = True
+                self.gripped = max(self.gripped, -float(sensors[i + 1]))
+        if any(sensors[i] for i in self._touching) or (gripped and self._pending()):
             self._contacts(sim.ncon)
         if self.period and self.steps % self.period == 0:
             self._keep()
         if self.early_end and self.phase == "hold" and self.steps % REST_PERIOD == 0:
             self._check_rest()
+
+    def _pending(self) -> bool:
+        """A touch of the object may still be recorded: the first, or the first of the
+        settle and the reach."""
+        return self.first is None or (not self.touched and self.phase in ("settle", "reach"))
 
     def run_for(self, seconds: float) -> None:
         """Step at constant targets (less if the rollout ends early).
@@ -191,7 +219,7 @@ class Monitor:
             deepest = -float(contact.dist[classes == PRESSED].min())
             if deepest > self.pressed:
                 self.pressed, self.pressed_phase = deepest, self.phase
-        pending = self.first is None or (not self.touched and self.phase in ("settle", "reach"))
+        pending = self._pending()
         gripped = None
         if count[GRIPPED]:
             gripped = classes == GRIPPED
