@@ -129,8 +129,8 @@ def test_the_watch_sensors_say_what_the_contact_list_holds(contents, monkeypatch
 
     step, seen = monitor_module.Monitor.step, {"gripped": 0, "touching": 0}
 
-    def checked(self):
-        step(self)
+    def checked(self, targets=None):
+        step(self, targets)
         sim, kinds, watch = self.sim, self.world.geom_kind, self.world.watch
         pairs = [sorted((int(kinds[a]), int(kinds[b]))) for a, b in sim.contact.geom[: sim.ncon]]
         dist = sim.contact.dist[: sim.ncon]

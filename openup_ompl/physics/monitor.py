@@ -151,17 +151,23 @@ class Monitor:
         """Simulated time [s]."""
         return self.steps * self.dt
 
-    def step(self) -> None:
-        """One simulation step at :attr:`ctrl`, then the watch: the object's height, and
-        the contacts through the watch's sensors (:mod:`~openup_ompl.physics.watch`);
-        MuJoCo's contact list is read one contact at a time only on steps where a robot
-        link touches a fixed obstacle or a neighbour, or touches the object while a first
-        touch may still be recorded."""
+    def step(self, targets: np.ndarray | None = None) -> None:
+        """One simulation step, then the watch: the object's height, and the contacts
+        through the watch's sensors (:mod:`~openup_ompl.physics.watch`); MuJoCo's contact
+        list is read one contact at a time only on steps where a robot link touches a
+        fixed obstacle or a neighbour, or touches the object while a first touch may
+        still be recorded.
+
+        Args:
+            targets: The actuator targets (plan joint order); ``None``: :attr:`ctrl`.
+        """
         world, sim = self.world, self.sim
+        if targets is None:
+            targets = self.ctrl
         if self._in_order:
-            self._sim_ctrl[:] = self.ctrl
+            self._sim_ctrl[:] = targets
         else:
-            sim.ctrl[world.actuator] = self.ctrl
+            sim.ctrl[world.actuator] = targets
         self._mj_step(world.model, sim)
         self.steps += 1
         height = self._qpos[self._height]
@@ -191,6 +197,30 @@ class Monitor:
         """A touch of the object may still be recorded: the first, or the first of the
         settle and the reach."""
         return self.first is None or (not self.touched and self.phase in ("settle", "reach"))
+
+    def drive(self, rows: np.ndarray, log: np.ndarray | None = None) -> int:
+        """Step once per row of actuator targets, fewer if the rollout ends; :attr:`ctrl`
+        ends at the last row driven.
+
+        Args:
+            rows: The targets of each step (plan joint order), shape ``(steps, n)``.
+            log: If given, ``log[k]`` gets the whole ``qpos`` after step ``k``.
+
+        Returns:
+            The steps taken.
+        """
+        done = 0
+        qpos, step = self._qpos, self.step
+        for row in rows:
+            if self.ended is not None:
+                break
+            step(row)
+            if log is not None:
+                log[done] = qpos
+            done += 1
+        if done:
+            self.ctrl[:] = rows[done - 1]
+        return done
 
     def run_for(self, seconds: float) -> None:
         """Step at constant targets (less if the rollout ends early).
