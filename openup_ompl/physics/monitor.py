@@ -175,18 +175,20 @@ class Monitor:
             self.sunk = self.phase
         if height > self.top and self.phase in ("lift", "hold"):
             self.top = float(height)
-        sensors = self._sensors
+        sensors = self._sensors.tolist()
         if sensors[self._pressed]:
             # The deepest penetration: -min(dist) is max(-dist) to the last bit.
-            deepest = -float(sensors[self._pressed + 1])
+            deepest = -sensors[self._pressed + 1]
             if deepest > self.pressed:
                 self.pressed, self.pressed_phase = deepest, self.phase
-        gripped = False
+        look = False
         for i in self._gripped:
             if sensors[i]:
-                gripped = True
-                self.gripped = max(self.gripped, -float(sensors[i + 1]))
-        if any(sensors[i] for i in self._touching) or (gripped and self._pending()):
+                look = look or self._pending()
+                self.gripped = max(self.gripped, -sensors[i + 1])
+        for i in self._touching:
+            look = look or sensors[i] > 0
+        if look:
             self._contacts(sim.ncon)
         if self.period and self.steps % self.period == 0:
             self._keep()
