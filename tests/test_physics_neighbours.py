@@ -145,10 +145,10 @@ def test_the_watch_sensors_say_what_the_contact_list_holds(contents, monkeypatch
         seen["touching"] += bool(touching)
 
     monkeypatch.setattr(monitor_module.Monitor, "step", checked)
-    Rollout(contents).run(frames=False)  # the block in the way
+    Rollout(contents).run(frames=True)  # the block in the way; frames: every step single
     without_block = {**contents, "scene": {**contents["scene"], "obstacles": [
         o for o in contents["scene"]["obstacles"] if o["name"] != "block"]}}  # fmt: skip
-    Rollout(without_block).run(frames=False)  # the can held
+    Rollout(without_block).run(frames=True)  # the can held
     assert seen["gripped"] > 1000 and seen["touching"] > 100, seen
     world = build_world(contents)
     model, kinds = world.model, world.geom_kind
@@ -162,3 +162,20 @@ def test_the_watch_sensors_say_what_the_contact_list_holds(contents, monkeypatch
         return body in roots
 
     assert [under_a_root(int(b)) for b in model.geom_bodyid] == list(kinds == ROBOT)
+
+
+@pytest.mark.parametrize("early_end", [False, True])
+def test_steps_run_inside_mujoco_give_the_single_steps_record(contents, early_end):
+    """A rollout whose steps run in stretches inside MuJoCo (no frames kept) gives the
+    record of the same rollout stepped one step at a time (frames kept), to the last bit:
+    the block pushed, the can held, the can missed."""
+    from openup_ompl.physics import PhysicsOptions
+
+    without_block = {**contents, "scene": {**contents["scene"], "obstacles": [
+        o for o in contents["scene"]["obstacles"] if o["name"] != "block"]}}  # fmt: skip
+    for data, offset in ((contents, (0.0, 0.0, 0.0)), (without_block, (0.0, 0.0, 0.0)),
+                         (without_block, (0.0, 0.03, 0.0))):  # fmt: skip
+        rollout = Rollout(data, PhysicsOptions(early_end=early_end))
+        assert rollout.run(offset, frames=False).to_dict(frames=False) == rollout.run(
+            offset, frames=True
+        ).to_dict(frames=False)

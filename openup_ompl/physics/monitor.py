@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from openup_ompl.exceptions import SimulationDiverged
+from openup_ompl.physics.chunks import CHUNK, Chunks, rest_flags
 from openup_ompl.physics.world import NEIGHBOUR, OBJECT, OBSTACLE, ROBOT, World
 
 __all__ = ["UNSTABLE", "Monitor", "transform"]
@@ -143,8 +144,12 @@ class Monitor:
         self._mj_step = mujoco.mj_step
         watch = world.watch
         self._pressed = watch.pressed
-        self._gripped = watch.gripped
-        self._touching = watch.touching
+        # Stretches of steps inside MuJoCo (none with frames to keep), and the step count
+        # until which the monitor steps one step at a time.
+        self.chunks: Chunks | None = Chunks(self) if not frame_period else None
+        self.slow_until = 0
+        self.gripped_sensors = watch.gripped
+        self.touching_sensors = watch.touching
 
     @property
     def time(self) -> float:
@@ -182,11 +187,11 @@ class Monitor:
             if deepest > self.pressed:
                 self.pressed, self.pressed_phase = deepest, self.phase
         look = False
-        for i in self._gripped:
+        for i in self.gripped_sensors:
             if sensors[i]:
-                look = look or self._pending()
+                look = look or self.pending()
                 self.gripped = max(self.gripped, -sensors[i + 1])
-        for i in self._touching:
+        for i in self.touching_sensors:
             look = look or sensors[i] > 0
         if look:
             self._contacts(sim.ncon)
@@ -195,14 +200,16 @@ class Monitor:
         if self.early_end and self.phase == "hold" and self.steps % REST_PERIOD == 0:
             self._check_rest()
 
-    def _pending(self) -> bool:
+    def pending(self) -> bool:
         """A touch of the object may still be recorded: the first, or the first of the
         settle and the reach."""
         return self.first is None or (not self.touched and self.phase in ("settle", "reach"))
 
     def drive(self, rows: np.ndarray, log: np.ndarray | None = None) -> int:
         """Step once per row of actuator targets, fewer if the rollout ends; :attr:`ctrl`
-        ends at the last row driven.
+        ends at the last row driven. Stretches run inside MuJoCo
+        (:class:`~openup_ompl.physics.chunks.Chunks`), one step at a time where contacts
+        must be read one by one: the same steps either way, to the last bit.
 
         Args:
             rows: The targets of each step (plan joint order), shape ``(steps, n)``.
@@ -211,15 +218,19 @@ class Monitor:
         Returns:
             The steps taken.
         """
-        done = 0
-        qpos, step = self._qpos, self.step
-        for row in rows:
-            if self.ended is not None:
-                break
-            step(row)
-            if log is not None:
-                log[done] = qpos
-            done += 1
+        done, total = 0, len(rows)
+        while done < total and self.ended is None:
+            if self.chunks is not None and self.steps >= self.slow_until:
+                done += self.chunks.run(self, rows[done : done + CHUNK], log, done)
+                continue
+            end = total if self.chunks is None else min(total, done + self.slow_until - self.steps)
+            for row in rows[done:end]:
+                if self.ended is not None:
+                    break
+                self.step(row)
+                if log is not None:
+                    log[done] = self._qpos
+                done += 1
         if done:
             self.ctrl[:] = rows[done - 1]
         return done
@@ -230,10 +241,62 @@ class Monitor:
         Args:
             seconds: Simulated time [s]; rounded to whole timesteps.
         """
-        for _ in range(round(seconds / self.dt)):
-            if self.ended is not None:
-                return
-            self.step()
+        steps = round(seconds / self.dt)
+        if steps and self.ended is None:
+            self.drive(np.tile(self.ctrl, (steps, 1)))
+
+    def watch_steps(self, heights: np.ndarray, sensors: np.ndarray) -> None:
+        """The watch of steps that MuJoCo ran (:mod:`~openup_ompl.physics.chunks`), none of
+        whose contacts needs reading one by one: what :meth:`step` does, array by array.
+
+        Args:
+            heights: The object's height [m] after each step.
+            sensors: The sensor values of each step.
+        """
+        if not len(heights):
+            return
+        self.steps += len(heights)
+        if self.sunk is None and (heights < self.floor).any():
+            self.sunk = self.phase
+        if self.phase in ("lift", "hold"):
+            self.top = max(self.top, float(heights.max()))
+        found = sensors[:, self._pressed] > 0
+        if found.any():
+            deepest = float((-sensors[found, self._pressed + 1]).max())
+            if deepest > self.pressed:
+                self.pressed, self.pressed_phase = deepest, self.phase
+        for i in self.gripped_sensors:
+            found = sensors[:, i] > 0
+            if found.any():
+                self.gripped = max(self.gripped, float((-sensors[found, i + 1]).max()))
+
+    def rest_checks(self, states: np.ndarray, sensors: np.ndarray, qvel: int) -> int | None:
+        """The hold's rest checks (:meth:`_check_rest`) over steps that MuJoCo ran, from
+        their states and sensors; sets :attr:`ended` at the check that ends the rollout.
+
+        Args:
+            states: MuJoCo's full physics state after each step (time first).
+            sensors: The sensor values of each step.
+            qvel: Where ``qvel`` starts in a state.
+
+        Returns:
+            The index of the step the rollout ends at, or ``None``.
+        """
+        if not (self.early_end and self.phase == "hold"):
+            return None
+        world = self.world
+        steps = self.steps + 1 + np.arange(len(states))
+        checked = np.flatnonzero(steps % REST_PERIOD == 0)
+        still = rest_flags(states[checked], sensors[checked], qvel,
+                           [world.object_dof, *world.neighbour_dof], self.gripped_sensors,
+                           REST_SPEED, REST_SPIN)  # fmt: skip
+        for k, rests in zip(checked, still, strict=True):
+            self._rest_checks = self._rest_checks + 1 if rests else 0
+            if self._rest_checks >= REST_CHECKS:
+                self.ended = {"reason": "object left the hand, at rest", "phase": self.phase,
+                              "time_s": int(steps[k]) * self.dt}  # fmt: skip
+                return int(k)
+        return None
 
     def _contacts(self, ncon: int) -> None:
         """Record the step's contacts: penetrations, and each first touch. A geom pair's
@@ -251,7 +314,7 @@ class Monitor:
             deepest = -float(contact.dist[classes == PRESSED].min())
             if deepest > self.pressed:
                 self.pressed, self.pressed_phase = deepest, self.phase
-        pending = self._pending()
+        pending = self.pending()
         gripped = None
         if count[GRIPPED]:
             gripped = classes == GRIPPED
