@@ -371,14 +371,9 @@ class Monitor:
         row. The robot holds still at the top, so nothing moves again: the verdict
         (``dropped`` or ``no contact``, or a cause before them) is certain."""
         sim, world = self.sim, self.world
-        geom = sim.contact.geom[: sim.ncon]
-        classes = self._classes[geom[:, 0] * self._ngeom + geom[:, 1]]
         bodies = [world.object_dof, *world.neighbour_dof]
-        still = not (classes == GRIPPED).any() and all(
-            float(np.abs(sim.qvel[d : d + 3]).max()) < REST_SPEED
-            and float(np.abs(sim.qvel[d + 3 : d + 6]).max()) < REST_SPIN
-            for d in bodies
-        )
+        still = bool(rest_flags(sim.qvel[None], sim.sensordata[None], 0, bodies,
+                                self.gripped_sensors, REST_SPEED, REST_SPIN)[0])  # fmt: skip
         self._rest_checks = self._rest_checks + 1 if still else 0
         if self._rest_checks >= REST_CHECKS:
             self.ended = {"reason": "object left the hand, at rest", "phase": self.phase,
