@@ -59,9 +59,11 @@ class Chunks:
 
     def _call(self, steps: int) -> None:
         """Run ``steps`` of :attr:`controls` from :attr:`start` and :attr:`warm`."""
-        self.runner.rollout_.rollout(
-            [self.model], [self.sim], steps, self.control_spec, self.start, self.warm,
-            self.controls[:, :steps], self.states[:, :steps], self.sensors[:, :steps], None,
+        self.runner.rollout(
+            [self.model], [self.sim], self.start, self.controls[:, :steps],
+            control_spec=self.control_spec, skip_checks=True, nstep=steps,
+            initial_warmstart=self.warm, state=self.states[:, :steps],
+            sensordata=self.sensors[:, :steps],
         )  # fmt: skip
 
     def run(self, monitor: Monitor, rows: np.ndarray, log: np.ndarray | None, at: int) -> int:

@@ -8,7 +8,8 @@ robot against the fixed obstacles and against each neighbour (how many contacts)
 whose contacts are only the object on its support and the hand on the object (once its
 first touch is recorded) is then read from a few numbers; the rest go through the contact
 list as before (:meth:`~openup_ompl.physics.monitor.Monitor.step`). Sensors do not change
-the simulation: the trajectory is the same to the last bit.
+the simulation: the trajectory is the same to the last bit. (MuJoCo 3.3.6 or later: a
+``subtree`` of any body, not only of the world's children.)
 """
 
 from __future__ import annotations
