@@ -7,11 +7,12 @@ twice; ``--per-plan`` of the sweep's 21 perturbations each), run as a sweep work
 it: one :class:`~openup_ompl.physics.Rollout` per plan (built from the plan's file
 contents), every perturbation through it, no frames. "Before" is the package at
 ``--baseline`` (a git revision, extracted with ``git archive``; default: the parent of
-the commit whose message starts with "Rollout speed-ups"), "after" this tree with the
+the first commit whose message starts with "Rollout speed-ups"), "after" this tree with the
 sweep's settings (``PhysicsOptions(early_end=True)``; compiled worlds reused across plans
 of one scene). Each run is a fresh worker process; the runs alternate before / after
 ``--rounds`` times, so both see the same machine load; the ratio is per round, then its
-median. The verdicts of both are compared trial by trial.
+median, of the rates over wall-clock time and of the workers' CPU times (the second moves
+less with other processes' load). The verdicts of both are compared trial by trial.
 
 Run (about 3 minutes on one busy core with the defaults)::
 
@@ -53,25 +54,26 @@ def worker(per_plan: int, fast: bool) -> dict[str, object]:
     cases = regression.load(regression.TRIALS)
     contents = [regression.plan_contents(case) for case in cases]  # not timed: the plans
     verdicts, steps = [], 0
-    started = time.perf_counter()
+    started, cpu = time.perf_counter(), time.process_time()
     for case, data in zip(cases, contents, strict=True):
         rollout = Rollout(data, options)
         for trial in case["trials"][:per_plan]:
             record = rollout.run(trial["offset"], frames=False)
             verdicts.append([record.success, record.cause])
             steps += record.steps
-    seconds = time.perf_counter() - started
-    return {"rollouts": len(verdicts), "seconds": seconds, "steps": steps, "verdicts": verdicts}
+    seconds, cpu = time.perf_counter() - started, time.process_time() - cpu
+    return {"rollouts": len(verdicts), "seconds": seconds, "cpu_seconds": cpu, "steps": steps,
+            "verdicts": verdicts}  # fmt: skip
 
 
 def _baseline_revision() -> str:
     found = subprocess.run(
-        ["git", "log", "-1", f"--grep=^{MARK}", "--format=%H"],
+        ["git", "log", f"--grep=^{MARK}", "--format=%H"],
         cwd=ROOT, capture_output=True, text=True, check=False,
-    ).stdout.strip()  # fmt: skip
+    ).stdout.split()[-1:]  # fmt: skip
     if not found:
         raise SystemExit(f"no commit starting with {MARK!r}: pass --baseline REV")
-    return f"{found}~1"
+    return f"{found[0]}~1"
 
 
 def _extract(revision: str, into: Path) -> Path:
@@ -121,13 +123,15 @@ def main() -> int:
             runs.append({"before": before, "after": after})
             rate_before = before["rollouts"] / before["seconds"]  # type: ignore[operator]
             rate_after = after["rollouts"] / after["seconds"]  # type: ignore[operator]
+            cpu_ratio = before["cpu_seconds"] / after["cpu_seconds"]  # type: ignore[operator]
             same = before["verdicts"] == after["verdicts"]
             rows.append([
                 round_ + 1, before["rollouts"], f"{rate_before:.2f}", f"{rate_after:.2f}",
-                f"{rate_after / rate_before:.2f}x", f"{before['steps']} / {after['steps']}",
-                "yes" if same else "NO",
+                f"{rate_after / rate_before:.2f}x", f"{cpu_ratio:.2f}x",
+                f"{before['steps']} / {after['steps']}", "yes" if same else "NO",
             ])  # fmt: skip
     ratios = [float(r[4].rstrip("x")) for r in rows]
+    cpu_ratios = [float(r[5].rstrip("x")) for r in rows]
     print(f"baseline {revision}; {args.per_plan} perturbations x 6 plans per run")
     print(
         _common.markdown_table(
@@ -137,13 +141,17 @@ def main() -> int:
                 "before [rollouts/s]",
                 "after [rollouts/s]",
                 "after / before",
+                "CPU time before / after",
                 "steps before / after",
                 "same verdicts",
             ],
             rows,
         )  # fmt: skip
     )
-    print(f"median ratio {_common.median(ratios):.2f}x over {args.rounds} rounds")
+    print(
+        f"median ratio {_common.median(ratios):.2f}x (CPU time"
+        f" {_common.median(cpu_ratios):.2f}x) over {args.rounds} rounds"
+    )
     print(_common.machine_line(info))
     _common.write_json(args.json, {"machine": info, "baseline": revision, "runs": runs})
     return 0

@@ -115,3 +115,67 @@ def test_a_world_is_compiled_once_and_its_copy_takes_new_poses(contents, monkeyp
     assert second.world.model.opt.timestep == pytest.approx(0.002)
     record = second.run(frames=True)
     assert record.frames["neighbours"]["jar"][0][:3] == pytest.approx([0.5, -0.35, 0.05], abs=1e-3)
+
+
+def test_the_watch_sensors_say_what_the_contact_list_holds(contents, monkeypatch):
+    """At every step of a rollout whose hand pushes the block and squeezes the can, the
+    watch's sensors give the contact list's counts and least distances: the object on
+    the obstacles, the robot's moving links on the object, and on obstacles and
+    neighbours; their robot parts are the robot's moving geoms."""
+    import mujoco
+
+    from openup_ompl.physics import monitor as monitor_module
+    from openup_ompl.physics.world import OBJECT, OBSTACLE, ROBOT
+
+    step, seen = monitor_module.Monitor.step, {"gripped": 0, "touching": 0}
+
+    def checked(self, targets=None):
+        step(self, targets)
+        sim, kinds, watch = self.sim, self.world.geom_kind, self.world.watch
+        pairs = [sorted((int(kinds[a]), int(kinds[b]))) for a, b in sim.contact.geom[: sim.ncon]]
+        dist = sim.contact.dist[: sim.ncon]
+        s = sim.sensordata
+        for kind, at in (((OBSTACLE, OBJECT), watch.pressed), ((ROBOT, OBJECT), watch.gripped[0])):
+            mine = [d for p, d in zip(pairs, dist, strict=True) if p == sorted(kind)]
+            assert s[at] == len(mine)
+            assert not mine or s[at + 1] == min(mine)
+        touching = sum(p in ([ROBOT, OBSTACLE], [ROBOT, NEIGHBOUR]) for p in pairs)
+        assert sum(s[i] for i in watch.touching) == touching
+        seen["gripped"] += bool(s[watch.gripped[0]])
+        seen["touching"] += bool(touching)
+
+    monkeypatch.setattr(monitor_module.Monitor, "step", checked)
+    Rollout(contents).run(frames=True)  # the block in the way; frames: every step single
+    without_block = {**contents, "scene": {**contents["scene"], "obstacles": [
+        o for o in contents["scene"]["obstacles"] if o["name"] != "block"]}}  # fmt: skip
+    Rollout(without_block).run(frames=True)  # the can held
+    assert seen["gripped"] > 1000 and seen["touching"] > 100, seen
+    world = build_world(contents)
+    model, kinds = world.model, world.geom_kind
+    subtree = mujoco.mjtObj.mjOBJ_XBODY
+    roots = {int(model.sensor_objid[i]) for i in range(model.nsensor)
+             if model.sensor_objtype[i] == subtree}  # fmt: skip
+
+    def under_a_root(body):
+        while body and body not in roots:
+            body = int(model.body_parentid[body])
+        return body in roots
+
+    assert [under_a_root(int(b)) for b in model.geom_bodyid] == list(kinds == ROBOT)
+
+
+@pytest.mark.parametrize("early_end", [False, True])
+def test_steps_run_inside_mujoco_give_the_single_steps_record(contents, early_end):
+    """A rollout whose steps run in stretches inside MuJoCo (no frames kept) gives the
+    record of the same rollout stepped one step at a time (frames kept), to the last bit:
+    the block pushed, the can held, the can missed."""
+    from openup_ompl.physics import PhysicsOptions
+
+    without_block = {**contents, "scene": {**contents["scene"], "obstacles": [
+        o for o in contents["scene"]["obstacles"] if o["name"] != "block"]}}  # fmt: skip
+    for data, offset in ((contents, (0.0, 0.0, 0.0)), (without_block, (0.0, 0.0, 0.0)),
+                         (without_block, (0.0, 0.03, 0.0))):  # fmt: skip
+        rollout = Rollout(data, PhysicsOptions(early_end=early_end))
+        assert rollout.run(offset, frames=False).to_dict(frames=False) == rollout.run(
+            offset, frames=True
+        ).to_dict(frames=False)

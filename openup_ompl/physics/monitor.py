@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from openup_ompl.exceptions import SimulationDiverged
+from openup_ompl.physics.chunks import CHUNK, Chunks, rest_flags
 from openup_ompl.physics.world import NEIGHBOUR, OBJECT, OBSTACLE, ROBOT, World
 
 __all__ = ["UNSTABLE", "Monitor", "transform"]
@@ -129,40 +130,110 @@ class Monitor:
         self.touch_step: int | None = None
         self.ended: dict[str, Any] | None = None
         self.early_end = early_end
+        import mujoco
+
         model = world.model
         self._ngeom = int(model.ngeom)
         self._classes = _pair_classes(world.geom_kind)
         self._seen = np.zeros(self._ngeom * self._ngeom, dtype=bool)
         self._in_order = bool(np.array_equal(world.actuator, np.arange(model.nu)))
         self._rest_checks = 0
+        # Views into the simulation's arrays (fixed for its lifetime) and MuJoCo's step.
+        self._sim_ctrl, self._qpos, self._sensors = sim.ctrl, sim.qpos, sim.sensordata
+        self._height = world.object_qpos + 2
+        self._mj_step = mujoco.mj_step
+        watch = world.watch
+        self._pressed = watch.pressed
+        # Stretches of steps inside MuJoCo (none with frames to keep), and the step count
+        # until which the monitor steps one step at a time.
+        self.chunks: Chunks | None = Chunks(self) if not frame_period else None
+        self.slow_until = 0
+        self.gripped_sensors = watch.gripped
+        self.touching_sensors = watch.touching
 
     @property
     def time(self) -> float:
         """Simulated time [s]."""
         return self.steps * self.dt
 
-    def step(self) -> None:
-        """One simulation step at :attr:`ctrl`, then the watch."""
-        import mujoco
+    def step(self, targets: np.ndarray | None = None) -> None:
+        """One simulation step, then the watch: the object's height, and the contacts
+        through the watch's sensors (:mod:`~openup_ompl.physics.watch`); MuJoCo's contact
+        list is read one contact at a time only on steps where a robot link touches a
+        fixed obstacle or a neighbour, or touches the object while a first touch may
+        still be recorded.
 
+        Args:
+            targets: The actuator targets (plan joint order); ``None``: :attr:`ctrl`.
+        """
         world, sim = self.world, self.sim
+        if targets is None:
+            targets = self.ctrl
         if self._in_order:
-            sim.ctrl[:] = self.ctrl
+            self._sim_ctrl[:] = targets
         else:
-            sim.ctrl[world.actuator] = self.ctrl
-        mujoco.mj_step(world.model, sim)
+            sim.ctrl[world.actuator] = targets
+        self._mj_step(world.model, sim)
         self.steps += 1
-        height = sim.qpos[world.object_qpos + 2]
+        height = self._qpos[self._height]
         if self.sunk is None and height < self.floor:
             self.sunk = self.phase
-        if self.phase in ("lift", "hold") and height > self.top:
+        if height > self.top and self.phase in ("lift", "hold"):
             self.top = float(height)
-        if sim.ncon:
+        sensors = self._sensors.tolist()
+        if sensors[self._pressed]:
+            # The deepest penetration: -min(dist) is max(-dist) to the last bit.
+            deepest = -sensors[self._pressed + 1]
+            if deepest > self.pressed:
+                self.pressed, self.pressed_phase = deepest, self.phase
+        look = False
+        for i in self.gripped_sensors:
+            if sensors[i]:
+                look = look or self.pending()
+                self.gripped = max(self.gripped, -sensors[i + 1])
+        for i in self.touching_sensors:
+            look = look or sensors[i] > 0
+        if look:
             self._contacts(sim.ncon)
         if self.period and self.steps % self.period == 0:
             self._keep()
         if self.early_end and self.phase == "hold" and self.steps % REST_PERIOD == 0:
             self._check_rest()
+
+    def pending(self) -> bool:
+        """A touch of the object may still be recorded: the first, or the first of the
+        settle and the reach."""
+        return self.first is None or (not self.touched and self.phase in ("settle", "reach"))
+
+    def drive(self, rows: np.ndarray, log: np.ndarray | None = None) -> int:
+        """Step once per row of actuator targets, fewer if the rollout ends; :attr:`ctrl`
+        ends at the last row driven. Stretches run inside MuJoCo
+        (:class:`~openup_ompl.physics.chunks.Chunks`), one step at a time where contacts
+        must be read one by one: the same steps either way, to the last bit.
+
+        Args:
+            rows: The targets of each step (plan joint order), shape ``(steps, n)``.
+            log: If given, ``log[k]`` gets the whole ``qpos`` after step ``k``.
+
+        Returns:
+            The steps taken.
+        """
+        done, total = 0, len(rows)
+        while done < total and self.ended is None:
+            if self.chunks is not None and self.steps >= self.slow_until:
+                done += self.chunks.run(self, rows[done : done + CHUNK], log, done)
+                continue
+            end = total if self.chunks is None else min(total, done + self.slow_until - self.steps)
+            for row in rows[done:end]:
+                if self.ended is not None:
+                    break
+                self.step(row)
+                if log is not None:
+                    log[done] = self._qpos
+                done += 1
+        if done:
+            self.ctrl[:] = rows[done - 1]
+        return done
 
     def run_for(self, seconds: float) -> None:
         """Step at constant targets (less if the rollout ends early).
@@ -170,10 +241,62 @@ class Monitor:
         Args:
             seconds: Simulated time [s]; rounded to whole timesteps.
         """
-        for _ in range(round(seconds / self.dt)):
-            if self.ended is not None:
-                return
-            self.step()
+        steps = round(seconds / self.dt)
+        if steps and self.ended is None:
+            self.drive(np.tile(self.ctrl, (steps, 1)))
+
+    def watch_steps(self, heights: np.ndarray, sensors: np.ndarray) -> None:
+        """The watch of steps that MuJoCo ran (:mod:`~openup_ompl.physics.chunks`), none of
+        whose contacts needs reading one by one: what :meth:`step` does, array by array.
+
+        Args:
+            heights: The object's height [m] after each step.
+            sensors: The sensor values of each step.
+        """
+        if not len(heights):
+            return
+        self.steps += len(heights)
+        if self.sunk is None and (heights < self.floor).any():
+            self.sunk = self.phase
+        if self.phase in ("lift", "hold"):
+            self.top = max(self.top, float(heights.max()))
+        found = sensors[:, self._pressed] > 0
+        if found.any():
+            deepest = float((-sensors[found, self._pressed + 1]).max())
+            if deepest > self.pressed:
+                self.pressed, self.pressed_phase = deepest, self.phase
+        for i in self.gripped_sensors:
+            found = sensors[:, i] > 0
+            if found.any():
+                self.gripped = max(self.gripped, float((-sensors[found, i + 1]).max()))
+
+    def rest_checks(self, states: np.ndarray, sensors: np.ndarray, qvel: int) -> int | None:
+        """The hold's rest checks (:meth:`_check_rest`) over steps that MuJoCo ran, from
+        their states and sensors; sets :attr:`ended` at the check that ends the rollout.
+
+        Args:
+            states: MuJoCo's full physics state after each step (time first).
+            sensors: The sensor values of each step.
+            qvel: Where ``qvel`` starts in a state.
+
+        Returns:
+            The index of the step the rollout ends at, or ``None``.
+        """
+        if not (self.early_end and self.phase == "hold"):
+            return None
+        world = self.world
+        steps = self.steps + 1 + np.arange(len(states))
+        checked = np.flatnonzero(steps % REST_PERIOD == 0)
+        still = rest_flags(states[checked], sensors[checked], qvel,
+                           [world.object_dof, *world.neighbour_dof], self.gripped_sensors,
+                           REST_SPEED, REST_SPIN)  # fmt: skip
+        for k, rests in zip(checked, still, strict=True):
+            self._rest_checks = self._rest_checks + 1 if rests else 0
+            if self._rest_checks >= REST_CHECKS:
+                self.ended = {"reason": "object left the hand, at rest", "phase": self.phase,
+                              "time_s": int(steps[k]) * self.dt}  # fmt: skip
+                return int(k)
+        return None
 
     def _contacts(self, ncon: int) -> None:
         """Record the step's contacts: penetrations, and each first touch. A geom pair's
@@ -191,7 +314,7 @@ class Monitor:
             deepest = -float(contact.dist[classes == PRESSED].min())
             if deepest > self.pressed:
                 self.pressed, self.pressed_phase = deepest, self.phase
-        pending = self.first is None or (not self.touched and self.phase in ("settle", "reach"))
+        pending = self.pending()
         gripped = None
         if count[GRIPPED]:
             gripped = classes == GRIPPED
@@ -248,14 +371,9 @@ class Monitor:
         row. The robot holds still at the top, so nothing moves again: the verdict
         (``dropped`` or ``no contact``, or a cause before them) is certain."""
         sim, world = self.sim, self.world
-        geom = sim.contact.geom[: sim.ncon]
-        classes = self._classes[geom[:, 0] * self._ngeom + geom[:, 1]]
         bodies = [world.object_dof, *world.neighbour_dof]
-        still = not (classes == GRIPPED).any() and all(
-            float(np.abs(sim.qvel[d : d + 3]).max()) < REST_SPEED
-            and float(np.abs(sim.qvel[d + 3 : d + 6]).max()) < REST_SPIN
-            for d in bodies
-        )
+        still = bool(rest_flags(sim.qvel[None], sim.sensordata[None], 0, bodies,
+                                self.gripped_sensors, REST_SPEED, REST_SPIN)[0])  # fmt: skip
         self._rest_checks = self._rest_checks + 1 if still else 0
         if self._rest_checks >= REST_CHECKS:
             self.ended = {"reason": "object left the hand, at rest", "phase": self.phase,

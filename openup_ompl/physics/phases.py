@@ -97,19 +97,11 @@ class Reach:
             The phase's duration [s] (shorter if the rollout ended in it).
         """
         monitor.phase, monitor.phase_start = "reach", monitor.steps
-        world, sim, ctrl = monitor.world, monitor.sim, monitor.ctrl
-        plan, qpos = self.plan, world.qpos
-        log = np.empty((plan.steps, qpos.size))
-        done = 0
-        for k in range(plan.steps):
-            if monitor.ended is not None:
-                break
-            ctrl[:] = plan.commands[k]
-            monitor.step()
-            log[k] = sim.qpos[qpos]
-            done = k + 1
+        world, ctrl, plan = monitor.world, monitor.ctrl, self.plan
+        log = np.empty((plan.steps, monitor.sim.qpos.size))
+        done = monitor.drive(plan.commands[: plan.steps], log)
         if done:
-            error = np.abs(log[:done] - plan.targets[:done])
+            error = np.abs(log[:done, world.qpos] - plan.targets[:done])
             self.arm_error = max(0.0, float(error[:, world.arm].max()))
             if world.hand.size:
                 # Steps after which the hand had not yet touched the object.
@@ -144,9 +136,10 @@ class Closing:
         self.duration = float(np.max(self.span / rates)) if world.hand.size else 0.0
 
     def _targets(self, ctrl: np.ndarray, travel: np.ndarray) -> None:
-        ctrl[self.world.hand] = self.start + self.direction * travel
+        """Set the hand's targets in ``ctrl`` (a row, or one row per step) at ``travel``."""
+        ctrl[..., self.world.hand] = self.start + self.direction * travel
         for follower, leader, multiplier, off in self.world.mimic:
-            ctrl[follower] = multiplier * ctrl[leader] + off
+            ctrl[..., follower] = multiplier * ctrl[..., leader] + off
 
     def close(self, monitor: Monitor) -> float:
         """Move the targets to the closed configuration.
@@ -159,11 +152,11 @@ class Closing:
         """
         monitor.phase, monitor.phase_start = "close", monitor.steps
         steps = math.ceil(self.duration / monitor.dt)
-        for k in range(steps):
-            if monitor.ended is not None:
-                break
-            self._targets(monitor.ctrl, np.minimum(self.span, self.rates * (k + 1) * monitor.dt))
-            monitor.step()
+        # Step k's travel, min(span, rates (k + 1) dt), for every k at once.
+        k = np.arange(1, steps + 1, dtype=float)[:, None]
+        rows = np.tile(monitor.ctrl, (steps, 1))
+        self._targets(rows, np.minimum(self.span, self.rates * k * monitor.dt))
+        monitor.drive(rows)
         return _duration(monitor, steps * monitor.dt, steps)
 
     def squeeze(self, monitor: Monitor, seconds: float) -> float:
@@ -178,11 +171,9 @@ class Closing:
         """
         monitor.phase, monitor.phase_start = "squeeze", monitor.steps
         steps = round(seconds / monitor.dt)
-        for _ in range(steps):
-            if monitor.ended is not None:
-                break
+        if steps and monitor.ended is None:
             self._targets(monitor.ctrl, self.span)
-            monitor.step()
+            monitor.run_for(seconds)
         return _duration(monitor, steps * monitor.dt, steps)
 
 
@@ -248,19 +239,13 @@ class Lift:
             The phase's duration [s] (shorter if the rollout ended in it).
         """
         monitor.phase, monitor.phase_start = "lift", monitor.steps
-        world, sim, ctrl, plan = monitor.world, monitor.sim, monitor.ctrl, self.plan
-        qpos = world.qpos[plan.arm]
-        log = np.empty((plan.steps, qpos.size))
-        done = 0
-        for k in range(plan.steps):
-            if monitor.ended is not None:
-                break
-            ctrl[plan.arm] = plan.commands[k]
-            monitor.step()
-            log[k] = sim.qpos[qpos]
-            done = k + 1
+        world, ctrl, plan = monitor.world, monitor.ctrl, self.plan
+        rows = np.tile(ctrl, (plan.steps, 1))
+        rows[:, plan.arm] = plan.commands
+        log = np.empty((plan.steps, monitor.sim.qpos.size))
+        done = monitor.drive(rows, log)
         if done:
-            error = np.abs(log[:done] - plan.targets[:done])
+            error = np.abs(log[:done, world.qpos[plan.arm]] - plan.targets[:done])
             self.arm_error = max(0.0, float(error.max()))
         ctrl[plan.arm] = plan.top
         return _duration(monitor, plan.steps * monitor.dt, plan.steps)

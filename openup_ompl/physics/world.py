@@ -38,6 +38,7 @@ from openup_ompl.physics.options import PhysicsOptions
 from openup_ompl.physics.pads import add_pads, pad_contacts
 from openup_ompl.physics.robot_table import RobotTable
 from openup_ompl.physics.shapes import add_free_body, add_scene
+from openup_ompl.physics.watch import Watch, add_watch, watch_of
 from openup_ompl.scene import Shape
 from openup_ompl.urdf import absolute_meshes, urdf_mimic, urdf_tree
 
@@ -157,6 +158,8 @@ class World:
         neighbour_dof: ``qvel`` address of each one's free joint.
         neighbour_start: ``(k, 7)`` each one's start ``qpos`` (position, scalar-first
             quaternion): its scene pose.
+        watch: Where the contact sensors of the simulation loop sit
+            (:mod:`~openup_ompl.physics.watch`).
     """
 
     model: Any
@@ -184,6 +187,7 @@ class World:
     neighbour_qpos: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
     neighbour_dof: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
     neighbour_start: np.ndarray = field(default_factory=lambda: np.zeros((0, 7)))
+    watch: Watch = field(default_factory=lambda: Watch(-1, (), ()))
 
 
 def _joint_limits(root: ET.Element) -> dict[str, tuple[float, float]]:
@@ -256,6 +260,7 @@ def make_world(
     _add_object(spec, fixed, scene_object, options)
     _add_neighbours(spec, neighbours, options)
     _set_contacts(spec)
+    add_watch(spec, "object", [NEIGHBOUR_BODY + shape.name for shape in neighbours])
     if robot.palm_frame not in {body.name for body in spec.bodies}:
         raise ConfigError("plan robot.palm_frame", robot.palm_frame, "a link of the URDF")
     try:
@@ -439,6 +444,7 @@ def _index(
         neighbour_start=np.array(
             [model.qpos0[a : a + 7] for a in model.jnt_qposadr[model.body_jntadr[neighbour_body]]]
         ).reshape(-1, 7),
+        watch=watch_of(model),
     )
 
 
