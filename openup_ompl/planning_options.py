@@ -22,7 +22,7 @@ from openup_ompl.exceptions import ConfigError
 from openup_ompl.goal import MAX_RETREAT
 from openup_ompl.hand_law import HandLaw
 from openup_ompl.ik import IKOptions
-from openup_ompl.native import NATIVE_MODES
+from openup_ompl.native import check_mode as check_native_mode
 from openup_ompl.planners.ikbirrt import IKBiRRTOptions
 from openup_ompl.scene import Problem
 from openup_ompl.validity import DEFAULT_RESOLUTION, RESOLUTION_MAX, RESOLUTION_MIN
@@ -262,8 +262,7 @@ class PlanningOptions:
             if value is not None and not isinstance(value, kind):
                 raise ConfigError(name, value, f"None or an {kind.__name__}")
         _toml.number(self.pregrasp, "pregrasp", low=0.0, high=MAX_RETREAT)
-        if not isinstance(self.native, str) or self.native not in NATIVE_MODES:
-            raise ConfigError("native", self.native, f"one of {list(NATIVE_MODES)}")
+        check_native_mode(self.native)
 
     def overridden(self, **changes: Any) -> PlanningOptions:
         """These options with some fields replaced.

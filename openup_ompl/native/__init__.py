@@ -62,6 +62,7 @@ __all__ = [
     "build",
     "build_key",
     "check_built_with",
+    "check_mode",
     "compiled_check",
     "inexact_reason",
     "law_table",
@@ -241,6 +242,19 @@ def inexact_reason(law: HandLaw) -> str | None:
     return None
 
 
+def check_mode(mode: object) -> None:
+    """Refuse a ``native`` option that is not one of :data:`NATIVE_MODES`.
+
+    Args:
+        mode: The option's value.
+
+    Raises:
+        ConfigError: It is not one of them.
+    """
+    if not isinstance(mode, str) or mode not in NATIVE_MODES:
+        raise ConfigError("native", mode, f"one of {list(NATIVE_MODES)}")
+
+
 def resolve(mode: str, law: HandLaw) -> ModuleType | None:
     """The compiled module a checker with option ``native=mode`` uses for ``law``.
 
@@ -256,8 +270,7 @@ def resolve(mode: str, law: HandLaw) -> ModuleType | None:
         ConfigError: ``mode`` is not one of :data:`NATIVE_MODES`.
         NativeUnavailable: ``mode`` is ``"on"`` and the compiled check cannot be used.
     """
-    if not isinstance(mode, str) or mode not in NATIVE_MODES:
-        raise ConfigError("native", mode, f"one of {list(NATIVE_MODES)}")
+    check_mode(mode)
     if mode == "off":
         return None
     try:

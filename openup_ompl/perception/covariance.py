@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from openup_ompl.perception.superquadric import (
+    EXPONENTS,
     N_PARAMETERS,
     POSITION,
     ROTATION,
@@ -215,8 +216,9 @@ class SuperquadricFit:
         inverse = np.linalg.pinv(information + np.diag(prior), rcond=1e-12, hermitian=True)
         inverse = inverse / np.outer(scale, scale)
         # The exponents considered, with their fitted (marginal) covariance.
-        bend = (inverse @ a.T @ data[:, 3:5] / variance)[: len(pose)]
-        reduced = inverse[: len(pose), : len(pose)] + bend @ self.covariance[3:5, 3:5] @ bend.T
+        bend = (inverse @ a.T @ data[:, EXPONENTS] / variance)[: len(pose)]
+        exponents = self.covariance[EXPONENTS, EXPONENTS]
+        reduced = inverse[: len(pose), : len(pose)] + bend @ exponents @ bend.T
         covariance = np.zeros((N_PARAMETERS, N_PARAMETERS))
         covariance[np.ix_(pose, pose)] = reduced
         return covariance
@@ -238,10 +240,9 @@ class SuperquadricFit:
         sq = self.superquadric
         local = sq.local(outline.points)
         e1, e2 = sq.exponents
-        held = self.solid is not None and self.hidden is not None
-        if held:
-            assert self.hidden is not None
-            hidden = self.hidden.reshape(3, 2).copy()
+        held = self.hidden if self.solid is not None else None  # the fit's own faces
+        if held is not None:
+            hidden = held.reshape(3, 2).copy()
             scores = np.stack([local - sq.sizes, -local - sq.sizes], axis=-1)  # excess [m]
             if e2 >= SHARP:  # a cylinder's side: the radial excess
                 radial = np.hypot(*local[:, :2].T) - sq.sizes[:2].mean()
@@ -263,7 +264,7 @@ class SuperquadricFit:
         for i, sharp in enumerate((e2 < SHARP, e2 < SHARP, e1 < SHARP)):
             if not sharp:
                 continue
-            if not held:
+            if held is None:
                 data[: self.points][face != i, i] = 0.0
             axis = sq.rotation[:, i]
             across = float(np.linalg.norm(np.cross(axis, ray))) / depth

@@ -37,6 +37,7 @@ from openup_ompl.perception.covariance import (
 from openup_ompl.perception.likelihood import ROUND, _round_eigen, solid_mahalanobis
 from openup_ompl.perception.silhouette import Silhouette
 from openup_ompl.perception.superquadric import (
+    EXPONENTS,
     N_PARAMETERS,
     SOLIDS,
     _distance,
@@ -460,7 +461,8 @@ def _result(
     args = (points, superquadric.rotation, *fitted)
     residuals = _residuals(x, *args)
     jacobian = _jacobian(x, *args)
-    held = [] if fitted[3] is None else [3, 4]  # a solid's exponents: its own, not estimated
+    # A solid's exponents are its own, not estimated.
+    held = [] if fitted[3] is None else list(range(EXPONENTS.start, EXPONENTS.stop))
     jacobian[:, held] = 0.0
     n = points.shape[0]
     rows = measurement_rows(residuals, n, 0 if silhouette is None else len(silhouette.samples))
