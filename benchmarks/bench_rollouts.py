@@ -13,11 +13,15 @@ of one scene). Each run is a fresh worker process; the runs alternate before / a
 ``--rounds`` times, so both see the same machine load; the ratio is per round, then its
 median, of the rates over wall-clock time and of the workers' CPU times (the second moves
 less with other processes' load). The verdicts of both are compared trial by trial.
+``--shared`` adds a third worker a round: "after" with ``PhysicsOptions.shared_approach``
+(the plan's trials share its approach; equal up to rounding, so its verdicts are counted
+against "before"'s rather than required equal).
 
 Run (about 3 minutes on one busy core with the defaults)::
 
     python benchmarks/bench_rollouts.py
     python benchmarks/bench_rollouts.py --rounds 5 --per-plan 21 --json rollouts.json
+    python benchmarks/bench_rollouts.py --rounds 3 --per-plan 21 --shared
 """
 
 from __future__ import annotations
@@ -40,7 +44,7 @@ ROOT = Path(__file__).resolve().parents[1]
 MARK = "Rollout speed-ups"
 
 
-def worker(per_plan: int, fast: bool) -> dict[str, object]:
+def worker(per_plan: int, fast: bool, shared: bool = False) -> dict[str, object]:
     """Run the workload in this process; returns rollouts, seconds and verdicts."""
     sys.path.insert(0, str(ROOT / "tests"))
     import dataclasses
@@ -51,6 +55,8 @@ def worker(per_plan: int, fast: bool) -> dict[str, object]:
 
     names = {f.name for f in dataclasses.fields(PhysicsOptions)}
     options = PhysicsOptions(early_end=True) if fast and "early_end" in names else None
+    if shared:
+        options = PhysicsOptions(early_end=True, shared_approach=True)
     cases = regression.load(regression.TRIALS)
     contents = [regression.plan_contents(case) for case in cases]  # not timed: the plans
     verdicts, steps = [], 0
@@ -88,13 +94,13 @@ def _extract(revision: str, into: Path) -> Path:
     return into / "baseline"
 
 
-def _run(package_root: Path, per_plan: int, fast: bool) -> dict[str, object]:
+def _run(package_root: Path, per_plan: int, fast: bool, shared: bool = False) -> dict[str, object]:
     """One worker process with ``package_root`` first on its path."""
     env = {**os.environ, "PYTHONPATH": str(package_root)}
     args = [sys.executable, __file__, "--worker", "--per-plan", str(per_plan)]
+    flags = (["--fast"] if fast else []) + (["--shared"] if shared else [])
     out = subprocess.run(
-        [*args, *(["--fast"] if fast else [])], env=env, capture_output=True, text=True,
-        check=True,
+        [*args, *flags], env=env, capture_output=True, text=True, check=True,
     )  # fmt: skip
     result: dict[str, object] = json.loads(out.stdout.strip().splitlines()[-1])
     return result
@@ -108,9 +114,13 @@ def main() -> int:
     parser.add_argument("--json", default=None)
     parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--fast", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument(
+        "--shared", action="store_true",
+        help="also run 'after' with PhysicsOptions.shared_approach (a third worker a round)",
+    )  # fmt: skip
     args = parser.parse_args()
     if args.worker:
-        print(json.dumps(worker(args.per_plan, args.fast)))
+        print(json.dumps(worker(args.per_plan, args.fast, args.shared)))
         return 0
     revision = args.baseline or _baseline_revision()
     info = _common.machine_info()
@@ -125,11 +135,19 @@ def main() -> int:
             rate_after = after["rollouts"] / after["seconds"]  # type: ignore[operator]
             cpu_ratio = before["cpu_seconds"] / after["cpu_seconds"]  # type: ignore[operator]
             same = before["verdicts"] == after["verdicts"]
-            rows.append([
+            row = [
                 round_ + 1, before["rollouts"], f"{rate_before:.2f}", f"{rate_after:.2f}",
                 f"{rate_after / rate_before:.2f}x", f"{cpu_ratio:.2f}x",
                 f"{before['steps']} / {after['steps']}", "yes" if same else "NO",
-            ])  # fmt: skip
+            ]  # fmt: skip
+            if args.shared:
+                shared = _run(ROOT, args.per_plan, fast=True, shared=True)
+                runs[-1]["shared"] = shared
+                rate = shared["rollouts"] / shared["seconds"]  # type: ignore[operator]
+                pairs = zip(before["verdicts"], shared["verdicts"], strict=True)  # type: ignore[call-overload]
+                changed = sum(a != b for a, b in pairs)
+                row += [f"{rate:.2f}", f"{rate / rate_before:.2f}x", changed]
+            rows.append(row)
     ratios = [float(r[4].rstrip("x")) for r in rows]
     cpu_ratios = [float(r[5].rstrip("x")) for r in rows]
     print(f"baseline {revision}; {args.per_plan} perturbations x 6 plans per run")
@@ -144,6 +162,11 @@ def main() -> int:
                 "CPU time before / after",
                 "steps before / after",
                 "same verdicts",
+                *(
+                    ["shared [rollouts/s]", "shared / before", "verdicts changed (shared)"]
+                    if args.shared
+                    else []
+                ),
             ],
             rows,
         )  # fmt: skip
@@ -152,6 +175,9 @@ def main() -> int:
         f"median ratio {_common.median(ratios):.2f}x (CPU time"
         f" {_common.median(cpu_ratios):.2f}x) over {args.rounds} rounds"
     )
+    if args.shared:
+        shared_ratios = [float(r[9].rstrip("x")) for r in rows]
+        print(f"shared approach: median ratio {_common.median(shared_ratios):.2f}x")
     print(_common.machine_line(info))
     _common.write_json(args.json, {"machine": info, "baseline": revision, "runs": runs})
     return 0

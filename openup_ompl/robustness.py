@@ -142,6 +142,8 @@ class RobustnessOptions:
             robot file's ``[hand].torsion`` (0, point contacts, if it has none).
         execute: ``"kinematic"`` (welded object, force closure) or ``"physics"`` (each
             trial a MuJoCo rollout, :mod:`openup_ompl.physics.sweep`).
+        shared_approach: Physics only: a plan's trials share its approach
+            (``PhysicsOptions.shared_approach``; faster, equal up to rounding).
     """
 
     us: tuple[float, ...] = (0.0, 0.1, 0.3, 0.5, 1.0)
@@ -155,6 +157,7 @@ class RobustnessOptions:
     open_arrival: bool = False
     torsion: float | None = None
     execute: str = "kinematic"
+    shared_approach: bool = False
 
     def __post_init__(self) -> None:
         def values(name: str, raw: Sequence[float], ok: Any, expected: str) -> tuple[float, ...]:
@@ -203,6 +206,10 @@ class RobustnessOptions:
             raise ConfigError("open_arrival", self.open_arrival, "true or false")
         if self.execute not in EXECUTIONS:
             raise ConfigError("execute", self.execute, f"one of {list(EXECUTIONS)}")
+        if self.shared_approach not in (False, True) or (
+            self.shared_approach and self.execute != "physics"
+        ):
+            raise ConfigError("shared_approach", self.shared_approach, "true with physics only")
         if self.torsion is not None:
             check_torsion(self.torsion)
 
@@ -285,6 +292,8 @@ def make_tasks(
     if options.execute == "physics":
         shared["execute"] = "physics"
         function = "openup_ompl.physics.sweep:physics_run"
+        if options.shared_approach:  # a setting of its own shards
+            shared["shared_approach"] = True
     # The files' bytes, not only the scene's path (the task processes read the files
     # again, by path, so the contents stay out of their arguments).
     digest = settings_digest(shared, problem.source_files())

@@ -84,6 +84,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         " or in physics (MuJoCo: the object free, close, lift, hold)",
     )
     parser.add_argument(
+        "--shared-approach",
+        action="store_true",
+        help="physics: a plan's trials share the robot's approach up to where each hand may"
+        " first reach its object (faster; the object's rest equal up to rounding)",
+    )
+    parser.add_argument(
         "--out", type=out_path, default=Path("openup-robustness"), help="output directory"
     )
     add_executor_options(parser)
@@ -115,6 +121,7 @@ def run(args: argparse.Namespace) -> int:
         open_arrival=args.open_arrival,
         torsion=args.torsion,
         execute=args.execute,
+        shared_approach=args.shared_approach,
     )
     try:
         result = run_robustness(

@@ -4,13 +4,16 @@ kept frames, and MuJoCo's instability warnings (:class:`Monitor`)."""
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from openup_ompl.exceptions import SimulationDiverged
 from openup_ompl.physics.chunks import CHUNK, Chunks, rest_flags
 from openup_ompl.physics.world import NEIGHBOUR, OBJECT, OBSTACLE, ROBOT, World
+
+if TYPE_CHECKING:
+    from openup_ompl.physics.approach import Handover
 
 __all__ = ["UNSTABLE", "Monitor", "transform"]
 
@@ -150,6 +153,9 @@ class Monitor:
         self.slow_until = 0
         self.gripped_sensors = watch.gripped
         self.touching_sensors = watch.touching
+        # The shared approach's steps this rollout replays
+        # (:mod:`~openup_ompl.physics.approach`).
+        self.handover: Handover | None = None
 
     @property
     def time(self) -> float:
@@ -220,6 +226,9 @@ class Monitor:
         """
         done, total = 0, len(rows)
         while done < total and self.ended is None:
+            if self.handover is not None:  # the steps a shared approach ran
+                done += self.handover.replay(self, rows[done:], log, done)
+                continue
             if self.chunks is not None and self.steps >= self.slow_until:
                 done += self.chunks.run(self, rows[done : done + CHUNK], log, done)
                 continue

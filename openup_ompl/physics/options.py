@@ -11,6 +11,8 @@ from openup_ompl.scene import MIN_MASS
 
 __all__ = ["PHASE_MAX", "PhysicsOptions"]
 
+#: The options that are True or False.
+FLAGS = ("pads", "early_end", "shared_approach")
 #: The longest phase of a rollout [s of simulated time]: a bound on the settle, the
 #: squeeze, the lift, the hold, the reach and the closing (a longer one is a typo, and
 #: would run for hours).
@@ -103,6 +105,13 @@ class PhysicsOptions:
             contact``). The verdict is the full rollout's (tested on 126 trials); the
             record's numbers are those at the end (``ExecutionRecord.ended_early``).
             Sweeps and the closed loop's judge set it; ``execute`` does not.
+        shared_approach: A :class:`~openup_ompl.physics.rollout.Rollout`'s trials share
+            the settle, the reach and the close up to where each trial's hand may first
+            reach its object (:mod:`~openup_ompl.physics.approach`): the robot's motion
+            is the same to the last bit, the resting object's equal up to rounding (a
+            record's numbers may differ in their last digits; the verdicts of the 126
+            throughput trials are the same). For many offsets of one plan (the sweep
+            sets it); no gain for one trial per plan.
     """
 
     timestep: float = 0.002  # [s]
@@ -142,6 +151,7 @@ class PhysicsOptions:
     neighbour_tipped_angle: float = math.radians(45.0)  # [rad]
     pads: bool = True
     early_end: bool = False
+    shared_approach: bool = False
 
     def __post_init__(self) -> None:
         solimp = self.contact_solimp
@@ -162,11 +172,11 @@ class PhysicsOptions:
                 "(d0, dwidth, width, mid, power), 0 < d0 <= dwidth < 1, width > 0,"
                 " 0 < mid < 1, power >= 1",
             )
-        for flag in ("pads", "early_end"):
+        for flag in FLAGS:
             if not isinstance(getattr(self, flag), bool):
                 raise ConfigError(f"PhysicsOptions.{flag}", getattr(self, flag), "True or False")
         for item in fields(self):
-            if item.name in ("contact_solimp", "pads", "early_end"):
+            if item.name == "contact_solimp" or item.name in FLAGS:
                 continue
             value = getattr(self, item.name)
             if value is None and item.name in ("object_friction", "object_mass"):

@@ -151,13 +151,26 @@ class Closing:
             The phase's duration [s] (shorter if the rollout ended in it).
         """
         monitor.phase, monitor.phase_start = "close", monitor.steps
-        steps = math.ceil(self.duration / monitor.dt)
+        rows = self.rows(monitor.ctrl, monitor.dt)
+        monitor.drive(rows)
+        return _duration(monitor, len(rows) * monitor.dt, len(rows))
+
+    def rows(self, ctrl: np.ndarray, dt: float) -> np.ndarray:
+        """The closing's targets, one row per step.
+
+        Args:
+            ctrl: The targets at its start (plan joint order).
+            dt: The timestep [s].
+
+        Returns:
+            ``ctrl`` with the hand's targets moving, shape ``(steps, len(ctrl))``.
+        """
+        steps = math.ceil(self.duration / dt)
         # Step k's travel, min(span, rates (k + 1) dt), for every k at once.
         k = np.arange(1, steps + 1, dtype=float)[:, None]
-        rows = np.tile(monitor.ctrl, (steps, 1))
-        self._targets(rows, np.minimum(self.span, self.rates * k * monitor.dt))
-        monitor.drive(rows)
-        return _duration(monitor, steps * monitor.dt, steps)
+        rows = np.tile(ctrl, (steps, 1))
+        self._targets(rows, np.minimum(self.span, self.rates * k * dt))
+        return rows
 
     def squeeze(self, monitor: Monitor, seconds: float) -> float:
         """Hold the closed targets: each joint presses on what stopped it.

@@ -38,6 +38,7 @@ import numpy as np
 from openup_ompl._toml import is_number
 from openup_ompl.exceptions import ConfigError
 from openup_ompl.executor import check_generator_seed
+from openup_ompl.physics.approach import SharedApproach
 from openup_ompl.physics.inputs import PlanInput
 from openup_ompl.physics.monitor import UNSTABLE, Monitor, transform
 from openup_ompl.physics.options import PHASE_MAX, PhysicsOptions
@@ -211,6 +212,7 @@ class Rollout:
         self.reach_targets = ReachTargets(self.timed, self.lead, dt)
         lift_steps = max(1, math.ceil(options.lift_height / options.lift_speed / dt))
         self.lift_targets = LiftTargets(self.lift, world.arm, self.lead[world.arm], lift_steps, dt)
+        self._shared: SharedApproach | None = None  # made at the first trial that shares
 
     def run(
         self, offset: Sequence[float] = (0.0, 0.0, 0.0), seed: int = 0, frames: bool = True
@@ -278,10 +280,17 @@ class Rollout:
         """:meth:`run` with its offset checked; ``messages`` collects MuJoCo's warnings."""
         options, world, sim = self.options, self.world, self.sim
         jitter, floor = self._start(dx, dy, seed, yaw)
+        handover = None
+        if options.shared_approach and not frames:
+            if self._shared is None:
+                self._shared = SharedApproach(self)
+            start = sim.qpos[world.object_qpos : world.object_qpos + 7].copy()
+            handover = self._shared.handover(start)
         period = max(1, round(options.frame_period / world.model.opt.timestep))
         monitor = Monitor(world, sim, np.array(self.path[0]), floor, self.goal,
                           self.start_distance, period if frames else 0, messages,
                           early_end=options.early_end)  # fmt: skip
+        monitor.handover = handover
         phases: dict[str, float] = {}
         phases["settle"] = settle(monitor, options.settle)
         monitor.check_stable()

@@ -59,6 +59,7 @@ def physics_run(
     time_limit: float,
     perturbations: Sequence[Sequence[float]],
     open_arrival: bool = False,
+    shared_approach: bool = False,
     **_kinematic: Any,
 ) -> dict[str, Any]:
     """Plan once at the nominal pose, then execute every perturbation in physics (inside
@@ -73,6 +74,8 @@ def physics_run(
         time_limit: The planning time limit [s].
         perturbations: ``(dx [m], dy [m], yaw [rad])`` object offsets to execute against.
         open_arrival: Plan with the open-arrival law.
+        shared_approach: The plan's trials share its approach
+            (``PhysicsOptions.shared_approach``).
         **_kinematic: The kinematic test's settings, unused.
 
     Returns:
@@ -82,7 +85,7 @@ def physics_run(
     from openup_ompl.physics.rollout import Rollout
     from openup_ompl.robustness import plan_nominal
 
-    options = PhysicsOptions(early_end=True)
+    options = PhysicsOptions(early_end=True, shared_approach=shared_approach)
     record, _, plan = plan_nominal(
         seed, scene, u, planner, time_limit, perturbations, open_arrival,
         failed={"touched": False, "moved_before_closing": None},

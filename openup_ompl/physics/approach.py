@@ -1,0 +1,364 @@
+"""The approach a plan's trials share (``PhysicsOptions.shared_approach``): simulated once,
+each trial takes over where its hand may first reach its object (:class:`SharedApproach`).
+
+The plan's approach (settle, reach, close) runs once in the trials' own world with the
+object at its nominal pose (:attr:`SharedApproach.run`), as far as the hand stays off the
+object, the neighbours and the fixed obstacles. Until a robot part comes near the object,
+nothing a trial varies touches the robot: MuJoCo solves each constraint island on its own,
+so the arm's and the hand's motion are every trial's to the last bit, and so are the
+neighbours'. The object meanwhile rests on its support; a trial whose object stands
+elsewhere on the same flat face takes the nominal object's rest moved by its offset. That
+move is exact physics (on a flat face the rest does not depend on where the object
+stands) but not exact arithmetic: the object differs from an unshared run's by rounding
+(below a micrometre), so a record's numbers may differ in their last digits from the
+unshared run's, and a verdict that rounding decides may differ (one of the 126 throughput
+trials, which a 1e-10 m shift of its start also turns). The nominal trial is the unshared
+run bit for bit.
+
+A trial uses the shared run up to its *handover*: the last checkpoint (every
+:data:`STRIDE` steps) before which no robot geom that can touch the object may have
+reached it (or a neighbour), the object no neighbour
+(:mod:`~openup_ompl.physics.clearance`: bounding spheres at every step, then MuJoCo's
+distance at each checkpoint beyond what each geom moves until the next), and before the
+shared run's robot touched anything (its watch sensors). From the handover on the trial is
+simulated as without sharing. Not shared (the trial runs whole): a turned object (``yaw``
+!= 0), an object that rests on anything but the top face of one box or a horizontal
+plane, or near another fixed obstacle; nothing past a stretch in which MuJoCo warned.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from openup_ompl.physics import clearance
+from openup_ompl.physics.phases import Closing
+
+if TYPE_CHECKING:
+    from openup_ompl.physics.monitor import Monitor
+    from openup_ompl.physics.rollout import Rollout
+
+__all__ = ["BLOCK", "STRIDE", "Handover", "SharedApproach"]
+
+#: Steps between the checkpoints a trial can take over at.
+STRIDE = 16
+#: Steps the shared run goes further by when a trial needs more.
+BLOCK = 16 * STRIDE
+
+
+class _Track:
+    """A simulation run in stretches of at most :data:`STRIDE` steps: every state and
+    sensor row, and the solver's warm start at each stretch's end, kept.
+
+    Attributes:
+        states: ``states[t]``: the full physics state after ``t`` steps.
+        sensors: ``sensors[t]``: the sensors of step ``t - 1`` (its contacts at
+            ``t - 1``); row 0 zeros.
+        warm: The warm start after ``t`` steps, at each checkpoint ``t``.
+        count: How many of :attr:`states` are filled.
+    """
+
+    def __init__(self, model: Any, data: Any, steps: int) -> None:
+        import mujoco
+        from mujoco import rollout
+
+        self.model, self.data = model, data
+        self.runner = rollout.Rollout(nthread=0)
+        size = mujoco.mj_stateSize(model, int(mujoco.mjtState.mjSTATE_FULLPHYSICS))
+        self.states = np.empty((steps + 1, size))
+        self.sensors = np.zeros((steps + 1, model.nsensordata))
+        mujoco.mj_getState(model, data, self.states[0], int(mujoco.mjtState.mjSTATE_FULLPHYSICS))
+        self.warm = {0: data.qacc_warmstart.copy()}
+        self.count = 1
+
+    def extend(self, controls: np.ndarray) -> bool:
+        """Run ``controls`` (one ``ctrl`` row per step, at most :data:`STRIDE`) from the
+        last state; False (nothing kept) if MuJoCo warned."""
+        import mujoco
+
+        t, n = self.count - 1, len(controls)
+        self.runner.rollout(
+            [self.model], [self.data], self.states[t][None], controls[None],
+            control_spec=int(mujoco.mjtState.mjSTATE_CTRL), skip_checks=True, nstep=n,
+            initial_warmstart=self.warm[t][None], state=self.states[None, t + 1 : t + 1 + n],
+            sensordata=self.sensors[None, t + 1 : t + 1 + n],
+        )  # fmt: skip
+        if any(self.data.warning.number):
+            return False
+        self.warm[t + n] = self.data.qacc_warmstart.copy()
+        self.count += n
+        return True
+
+
+class SharedApproach:
+    """The settle, the reach and the close of one :class:`~openup_ompl.physics.rollout.
+    Rollout`, simulated once, in blocks of :data:`BLOCK` steps as far as its trials
+    need (module docstring).
+
+    Args:
+        rollout: The rollout whose trials share it.
+
+    Attributes:
+        rows: The targets of every shared step (plan joint order).
+        limit: No trial takes over later than this step: the shared run's robot touches
+            the object, a neighbour or a fixed obstacle in the stretch after it, or
+            MuJoCo warned there.
+        support: The object's support (found after the first block), or ``None``.
+    """
+
+    def __init__(self, rollout: Rollout) -> None:
+        import mujoco
+
+        from openup_ompl.physics.targets import displaced_pose
+        from openup_ompl.physics.world import NEIGHBOUR, OBJECT, ROBOT
+
+        world, options = rollout.world, rollout.options
+        model, dt = world.model, float(world.model.opt.timestep)
+        reach = rollout.reach_targets
+        ctrl = np.array(reach.targets[reach.steps - 1])
+        closing = Closing(world, ctrl[world.hand], rollout.closed, rollout.close_rates)
+        self.rows = np.concatenate([
+            np.tile(rollout.path[0], (round(options.settle / dt), 1)),
+            reach.commands[: reach.steps],
+            closing.rows(ctrl, dt),
+        ])  # fmt: skip
+        steps = len(self.rows)
+        self.controls = np.zeros((steps, model.nu))
+        self.controls[:, world.actuator] = self.rows
+        self.world, self.qpos = world, 1 + np.arange(model.nq)
+        self.nominal = displaced_pose(world.object_shape.pose, 0.0, 0.0, 0.0)
+        self.limit, self.ended = steps, False
+        self.support: clearance.Support | None = None
+        self.supported: bool | None = None  # None until the support is looked for
+
+        # The whole world, the object at its nominal pose.
+        data = mujoco.MjData(model)
+        data.qpos[world.qpos] = rollout.path[0]
+        data.qpos[world.object_qpos : world.object_qpos + 7] = self.nominal
+        for address, start in zip(world.neighbour_qpos, world.neighbour_start, strict=True):
+            data.qpos[address : address + 7] = start
+        data.ctrl[world.actuator] = rollout.path[0]
+        mujoco.mj_forward(model, data)
+        self.run = _Track(model, data, steps)
+        self.kinematics = mujoco.MjData(model)
+
+        # Geoms: the robot's that can touch the object or a neighbour; the object's; the
+        # neighbours'. Their bounding radii with margins [m].
+        kinds = world.geom_kind
+        self.objects = np.flatnonzero(kinds == OBJECT)
+        self.neighbours = np.flatnonzero(kinds == NEIGHBOUR)
+        obj = self.objects[0]
+        meets = (model.geom_contype & model.geom_conaffinity[obj]) | (
+            model.geom_contype[obj] & model.geom_conaffinity
+        )
+        self.geoms = np.flatnonzero((kinds == ROBOT) & (meets != 0))
+        bound = model.geom_rbound + model.geom_margin
+        self.r_geoms, self.r_objects = bound[self.geoms], bound[self.objects]
+        self.r_neighbours = bound[self.neighbours]
+        self.object_radius = clearance.body_radius(model, world.object_body)
+        self.neighbour_radius = [clearance.body_radius(model, b) for b in world.neighbour_body]
+        self.centres = np.empty((steps + 1, len(self.geoms), 3))
+        self.axes = np.empty((steps + 1, len(self.geoms), 9))
+        self.neighbour_centres = np.empty((steps + 1, len(self.neighbours), 3))
+        self.object_centres = np.empty((steps + 1, len(self.objects), 3))
+        self.robot_apart = np.empty(steps + 1, dtype=bool)  # from every neighbour
+        self._motions: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._kinematics(0, 1)
+
+    def _kinematics(self, first: int, stop: int) -> None:
+        """The geoms' placements at the shared run's states ``first .. stop - 1``."""
+        import mujoco
+
+        model, data = self.world.model, self.kinematics
+        for t in range(first, stop):
+            data.qpos[:] = self.run.states[t][self.qpos]
+            mujoco.mj_kinematics(model, data)
+            self.centres[t] = data.geom_xpos[self.geoms]
+            self.axes[t] = data.geom_xmat[self.geoms]
+            self.neighbour_centres[t] = data.geom_xpos[self.neighbours]
+            self.object_centres[t] = data.geom_xpos[self.objects]
+        self.robot_apart[first:stop] = clearance.spheres_apart(
+            self.centres[first:stop], self.r_geoms,
+            self.neighbour_centres[first:stop], self.r_neighbours,
+        )  # fmt: skip
+
+    def _extend(self) -> bool:
+        """Run the shared simulation up to :data:`BLOCK` steps further; False if it is at
+        :attr:`limit` already."""
+        first = self.run.count
+        if self.ended or first - 1 >= self.limit:
+            return False
+        done = first - 1
+        while done < min(first - 1 + BLOCK, self.limit):
+            controls = self.controls[done : done + STRIDE]
+            if not self.run.extend(controls):
+                self.ended, self.limit = True, done  # nothing from the failed stretch on
+                break
+            done += len(controls)
+        stop = self.run.count
+        self._kinematics(first, stop)
+        watch = self.world.watch
+        touching = [*watch.touching, *watch.gripped]
+        hit = (self.run.sensors[first:stop, touching] > 0).any(axis=1)
+        if hit.any():  # sensors row t: the contacts at state t - 1
+            at = first - 1 + int(np.argmax(hit))
+            self.limit = min(self.limit, at - at % STRIDE)
+        if self.supported is None:
+            self.support = clearance.support(self.world.model, self.run.states[stop - 1])
+            self.supported = self.support is not None
+        return stop > first
+
+    def _motion(self, first: int, stop: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """How far [m] each robot geom, object geom and neighbour geom may move from
+        ``first`` until ``stop`` (cached)."""
+        if first not in self._motions:
+            world = self.world
+            robot = clearance.geom_motion(
+                self.centres[first:stop], self.axes[first:stop], self.r_geoms
+            )
+            q = 1 + world.object_qpos
+            poses = self.run.states[first:stop, q : q + 7]
+            objects = np.full(len(self.objects), clearance.body_motion(poses, self.object_radius))
+            neighbours = np.zeros(len(self.neighbours))
+            owner = world.model.geom_bodyid[self.neighbours]
+            for body, address, radius in zip(
+                world.neighbour_body, world.neighbour_qpos, self.neighbour_radius, strict=True
+            ):
+                poses = self.run.states[first:stop, 1 + address : 8 + address]
+                neighbours[owner == body] = clearance.body_motion(poses, radius)
+            self._motions[first] = (robot, objects, neighbours)
+        return self._motions[first]
+
+    def handover(self, start: np.ndarray) -> Handover | None:
+        """Where a trial whose object starts at ``start`` takes over.
+
+        Args:
+            start: The object's start ``qpos`` (position, scalar-first quaternion).
+
+        Returns:
+            The trial's handover, or ``None`` (the trial runs whole).
+        """
+        if not np.array_equal(start[2:], self.nominal[2:]):
+            return None
+        if self.supported is None:
+            self._extend()
+        shift = start[:3] - self.nominal[:3]
+        if self.support is None or not self.support.holds(shift, self.object_radius):
+            return None
+        # Bounding spheres at every state, as far as they stay apart.
+        t = 0
+        while True:
+            stop = self.run.count
+            apart = self.robot_apart[t:stop] & clearance.spheres_apart(
+                self.centres[t:stop], self.r_geoms,
+                self.object_centres[t:stop] + shift, self.r_objects,
+            ) & clearance.spheres_apart(
+                self.object_centres[t:stop] + shift, self.r_objects,
+                self.neighbour_centres[t:stop], self.r_neighbours,
+            )  # fmt: skip
+            if not apart.all():
+                t += int(np.argmin(apart))
+                break
+            t = stop
+            if not self._extend():
+                t = stop - 1
+                break
+        checkpoint = min(t - t % STRIDE, self.limit)
+        # MuJoCo's distances from there, a stretch at a time.
+        while checkpoint < self.limit:
+            following = min(checkpoint + STRIDE, len(self.rows))
+            if self.run.count <= following and not self._extend():
+                break
+            if following > self.limit or not self._apart(checkpoint, following, shift):
+                break
+            checkpoint = following
+        return Handover(self, checkpoint, shift) if checkpoint > 0 else None
+
+    def _apart(self, first: int, stop: int, shift: np.ndarray) -> bool:
+        """Whether no robot geom can touch the object (moved by ``shift``) or a neighbour,
+        and the object no neighbour, at the states ``first .. stop - 1``."""
+        import mujoco
+
+        t_robot, t_objects, t_neighbours = self._motion(first, stop)
+        robot, objects = self.centres[first], self.object_centres[first] + shift
+        neighbours = self.neighbour_centres[first]
+        pairs: list[tuple[int, int]] = []
+        travel: dict[int, float] = {}
+        for a, ra, ta, ga, b, rb, tb, gb in (
+            (robot, self.r_geoms, t_robot, self.geoms,
+             objects, self.r_objects, t_objects, self.objects),
+            (robot, self.r_geoms, t_robot, self.geoms,
+             neighbours, self.r_neighbours, t_neighbours, self.neighbours),
+            (objects, self.r_objects, t_objects, self.objects,
+             neighbours, self.r_neighbours, t_neighbours, self.neighbours),
+        ):  # fmt: skip
+            if not len(ga) or not len(gb):
+                continue
+            gaps = np.linalg.norm(a[:, None] - b[None], axis=2) - ra[:, None] - rb
+            for i, j in np.argwhere(gaps <= ta[:, None] + tb):
+                pairs.append((int(ga[i]), int(gb[j])))
+                travel[int(ga[i])], travel[int(gb[j])] = float(ta[i]), float(tb[j])
+        if not pairs:
+            return True
+        world, data = self.world, self.kinematics
+        data.qpos[:] = self.run.states[first][self.qpos]
+        q = world.object_qpos
+        data.qpos[q : q + 3] += shift
+        mujoco.mj_kinematics(world.model, data)
+        return clearance.exactly_apart(world.model, data, pairs, travel)
+
+
+class Handover:
+    """A trial's share of the approach: the steps ``0 .. end - 1`` are replayed from the
+    shared run, and the trial's simulation is set to the merged state at step ``end``.
+
+    Attributes:
+        end: The handover step.
+    """
+
+    def __init__(self, shared: SharedApproach, end: int, shift: np.ndarray) -> None:
+        self.shared, self.end, self.shift, self.world = shared, end, shift, shared.world
+
+    def _states(self, first: int, stop: int) -> np.ndarray:
+        """The trial's full physics states after ``first .. stop - 1`` steps: the shared
+        run's, its object moved by the trial's offset."""
+        states = self.shared.run.states[first:stop].copy()
+        q = 1 + self.world.object_qpos
+        states[:, q : q + 3] += self.shift
+        return states
+
+    def replay(self, monitor: Monitor, rows: np.ndarray, log: np.ndarray | None, at: int) -> int:
+        """Replay up to the handover from ``monitor.steps``: the watch's numbers, the log,
+        and at the end the simulation's state.
+
+        Args:
+            monitor: The trial's monitor.
+            rows: The targets the phase drives from here (plan joint order).
+            log: If given, ``log[at + k]`` gets the whole ``qpos`` after step ``k``.
+            at: The index in ``log`` of the first row.
+
+        Returns:
+            The steps replayed.
+        """
+        import mujoco
+
+        shared, world = self.shared, self.world
+        first = monitor.steps
+        n = min(len(rows), self.end - first)
+        if not np.array_equal(rows[:n], shared.rows[first : first + n]):
+            raise RuntimeError("the shared approach's targets differ from the trial's")
+        states = self._states(first + 1, first + n + 1)
+        sensors = shared.run.sensors[first + 1 : first + n + 1]
+        monitor.watch_steps(states[:, 1 + world.object_qpos + 2], sensors)
+        if log is not None:
+            log[at : at + n] = states[:, shared.qpos]
+        model, sim, spec = world.model, monitor.sim, int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
+        # As after MuJoCo's step: the kinematics of the state before, the state after.
+        mujoco.mj_setState(model, sim, self._states(first + n - 1, first + n)[0], spec)
+        mujoco.mj_kinematics(model, sim)
+        mujoco.mj_setState(model, sim, states[-1], spec)
+        if first + n == self.end:
+            sim.qacc_warmstart[:] = shared.run.warm[self.end]
+            monitor.handover = None
+        return n

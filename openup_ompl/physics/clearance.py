@@ -1,0 +1,190 @@
+"""Geometry of the shared approach (:mod:`~openup_ompl.physics.approach`): where the object
+rests (:func:`support`), how far a body or a geom moves over a stretch of states
+(:func:`body_motion`, :func:`geom_motion`), and whether two sets of geoms are clear of
+each other (:func:`spheres_apart`, :func:`exactly_apart`).
+
+Clearance is judged as MuJoCo judges contact: two geoms can touch only if their distance
+falls below their margins; bounding spheres (``geom_rbound``) first, MuJoCo's own
+distance (``mj_geomDistance``) where the spheres meet.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "Support", "body_motion", "body_radius", "exactly_apart", "geom_motion", "spheres_apart",
+    "support",
+]  # fmt: skip
+
+
+@dataclass
+class Support:
+    """The object's support: the top face of one fixed box (or a horizontal plane), every
+    other fixed obstacle clear of the object.
+
+    Attributes:
+        box: The supporting box ``(centre, rotation, half-sizes)``; ``None`` for a plane.
+        plane: Whether a horizontal plane is the support.
+        others: The other fixed geoms ``(type, centre, rotation, half-sizes, radius)``.
+        start: The object's start position [m] (its body origin).
+    """
+
+    box: tuple[np.ndarray, np.ndarray, np.ndarray] | None
+    plane: bool
+    start: np.ndarray
+    others: list[tuple[int, np.ndarray, np.ndarray, np.ndarray, float]] = field(
+        default_factory=list
+    )
+
+    def holds(self, shift: np.ndarray, radius: float) -> bool:
+        """Whether the object, moved by ``shift`` [m], stands on the same face with its
+        bounding sphere (``radius`` [m]) within the face's outline and clear of every
+        other fixed obstacle."""
+        import mujoco
+
+        centre = self.start + shift
+        if self.box is not None:
+            position, rotation, half = self.box
+            local = rotation.T @ (centre - position)
+            if np.any(np.abs(local[:2]) + radius > half[:2]):
+                return False
+        for kind, position, rotation, half, bound in self.others:
+            local = rotation.T @ (centre - position)
+            if kind == mujoco.mjtGeom.mjGEOM_PLANE:
+                gap = abs(float(local[2]))
+            elif kind == mujoco.mjtGeom.mjGEOM_BOX:
+                gap = float(np.linalg.norm(np.maximum(np.abs(local) - half, 0.0)))
+            else:
+                gap = float(np.linalg.norm(local)) - bound
+            if gap <= radius:
+                return False
+        return True
+
+
+def support(model: Any, state: np.ndarray) -> Support | None:
+    """The object's support at ``state`` (a full physics state of the world), or
+    ``None``: it touches two things, nothing, anything but a fixed obstacle, or something
+    other than a box's horizontal face or a horizontal plane.
+
+    Args:
+        model: The world's ``mujoco.MjModel`` (its object body named ``object``).
+        state: Its full physics state.
+
+    Returns:
+        The support, or ``None``.
+    """
+    import mujoco
+
+    data = mujoco.MjData(model)
+    mujoco.mj_setState(model, data, state, int(mujoco.mjtState.mjSTATE_FULLPHYSICS))
+    mujoco.mj_forward(model, data)
+    body = model.body("object").id
+    touched = set()
+    for contact in data.contact[: data.ncon]:
+        a, b = (int(g) for g in contact.geom)
+        if body in (model.geom_bodyid[a], model.geom_bodyid[b]):
+            touched.add(b if model.geom_bodyid[a] == body else a)
+    if len(touched) != 1:
+        return None
+    (under,) = touched
+    rotation = data.geom_xmat[under].reshape(3, 3).copy()
+    if model.geom_bodyid[under] != 0 or abs(rotation[2, 2]) != 1.0:
+        return None  # not fixed, or its local z not the world's vertical
+    kind = int(model.geom_type[under])
+    box = None
+    if kind == mujoco.mjtGeom.mjGEOM_BOX:
+        box = (data.geom_xpos[under].copy(), rotation, model.geom_size[under].copy())
+    elif kind != mujoco.mjtGeom.mjGEOM_PLANE:
+        return None
+    others = [
+        (int(model.geom_type[g]), data.geom_xpos[g].copy(),
+         data.geom_xmat[g].reshape(3, 3).copy(), model.geom_size[g] + model.geom_margin[g],
+         float(model.geom_rbound[g] + model.geom_margin[g]))
+        for g in np.flatnonzero(model.geom_bodyid == 0) if g != under
+    ]  # fmt: skip
+    return Support(box, box is None, data.xpos[body].copy(), others)
+
+
+def body_radius(model: Any, body: int) -> float:
+    """Radius [m] of a sphere about ``body``'s origin enclosing its geoms and margins."""
+    geoms = np.flatnonzero(model.geom_bodyid == body)
+    return float(
+        max(np.linalg.norm(model.geom_pos[g]) + model.geom_rbound[g] + model.geom_margin[g]
+            for g in geoms)
+    )  # fmt: skip
+
+
+def body_motion(poses: np.ndarray, radius: float) -> float:
+    """How far [m] any point within ``radius`` of a body's origin moves from the first of
+    ``poses`` (rows of position and scalar-first quaternion) to any other."""
+    import mujoco
+
+    rotations = np.empty((len(poses), 9))
+    for i, pose in enumerate(poses):
+        mujoco.mju_quat2Mat(rotations[i], pose[3:])
+    shift = np.linalg.norm(poses[:, :3] - poses[0, :3], axis=1).max()
+    turn = np.linalg.norm(rotations - rotations[0], axis=1).max()  # Frobenius >= spectral
+    return float(shift + turn * radius)
+
+
+def geom_motion(centres: np.ndarray, axes: np.ndarray, radius: np.ndarray) -> np.ndarray:
+    """How far [m] any point of each geom moves from the first state to any other.
+
+    Args:
+        centres: ``(states, geoms, 3)`` the geoms' centres [m].
+        axes: ``(states, geoms, 9)`` their rotation matrices.
+        radius: ``(geoms,)`` their bounding radii [m].
+
+    Returns:
+        ``(geoms,)`` the bound [m].
+    """
+    shift = np.linalg.norm(centres - centres[0], axis=2).max(axis=0)
+    turn = np.linalg.norm(axes - axes[0], axis=2).max(axis=0)
+    return shift + turn * radius
+
+
+def spheres_apart(a: np.ndarray, ra: np.ndarray, b: np.ndarray, rb: np.ndarray) -> np.ndarray:
+    """Per state, whether every sphere of ``a`` is apart from every sphere of ``b``.
+
+    Args:
+        a: ``(states, n, 3)`` centres [m]; ``ra`` ``(n,)`` radii [m].
+        b: ``(states, m, 3)`` centres [m]; ``rb`` ``(m,)`` radii [m].
+
+    Returns:
+        ``(states,)`` flags.
+    """
+    if not a.shape[1] or not b.shape[1]:
+        return np.ones(len(a), dtype=bool)
+    gaps = np.linalg.norm(a[:, :, None] - b[:, None], axis=3) - ra[:, None] - rb
+    return (gaps > 0).all(axis=(1, 2))
+
+
+def exactly_apart(
+    model: Any, data: Any, pairs: list[tuple[int, int]], travel: dict[int, float]
+) -> bool:
+    """Whether each geom pair stays apart while each geom moves up to ``travel[g]`` [m]:
+    MuJoCo's distance at ``data``'s kinematics beyond the two travels and margins.
+
+    Args:
+        model: The model.
+        data: Its data, kinematics computed.
+        pairs: Geom index pairs.
+        travel: Per geom of ``pairs``, how far it may move [m].
+
+    Returns:
+        True if no pair can come within its margins.
+    """
+    import mujoco
+
+    for g, h in pairs:
+        need = travel[g] + travel[h] + model.geom_margin[g] + model.geom_margin[h] + 1e-9
+        gap = np.linalg.norm(data.geom_xpos[g] - data.geom_xpos[h])
+        if gap - model.geom_rbound[g] - model.geom_rbound[h] > need:
+            continue
+        if mujoco.mj_geomDistance(model, data, g, h, need + 0.01, None) <= need:
+            return False
+    return True
