@@ -209,7 +209,9 @@ class RobustnessOptions:
         if self.shared_approach not in (False, True) or (
             self.shared_approach and self.execute != "physics"
         ):
-            raise ConfigError("shared_approach", self.shared_approach, "true with physics only")
+            raise ConfigError(
+                "shared_approach", self.shared_approach, "True or False (True with physics only)"
+            )
         if self.torsion is not None:
             check_torsion(self.torsion)
 

@@ -108,10 +108,11 @@ class PhysicsOptions:
         shared_approach: A :class:`~openup_ompl.physics.rollout.Rollout`'s trials share
             the settle, the reach and the close up to where each trial's hand may first
             reach its object (:mod:`~openup_ompl.physics.approach`): the robot's motion
-            is the same to the last bit, the resting object's equal up to rounding (a
-            record's numbers may differ in their last digits; the verdicts of the 126
-            throughput trials are the same). For many offsets of one plan (the sweep
-            sets it); no gain for one trial per plan.
+            is the same to the last bit, the resting object's equal up to rounding, so a
+            record's numbers may differ from the unshared run's (much, in a grasp that
+            rounding sends another way; the verdicts of the 146 fixed trials are the
+            same). For many offsets of one plan (``robustness --shared-approach``); no
+            gain for one trial per plan.
     """
 
     timestep: float = 0.002  # [s]

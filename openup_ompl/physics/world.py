@@ -54,7 +54,6 @@ __all__ = [
     "make_world",
     "plan_shapes",
     "urdf_spec",
-    "world_spec",
 ]
 
 #: Added to the URDF for MuJoCo's importer: keep mesh paths, drop visual geometry, accept
@@ -247,10 +246,21 @@ def make_world(
         ConfigError: A missing URDF, a joint or the palm frame absent from it.
     """
     options = options or PhysicsOptions()
-    spec, root, limits, scene_object, neighbours = world_spec(
-        robot, obstacles, scene_object, options
-    )
+    spec, root = urdf_spec(robot.urdf, list(robot.package_dirs))
+    limits = _joint_limits(root)
+    _add_robot(spec, robot, limits, options)
     pads = robot.pads if options.pads else ()
+    add_pads(spec, pads, options)
+    if options.object_mass is not None:
+        scene_object = replace(scene_object, mass=options.object_mass)
+    if options.object_friction is not None:
+        scene_object = replace(scene_object, friction=options.object_friction)
+    fixed = [shape for shape in obstacles if not shape.movable]
+    neighbours = [shape for shape in obstacles if shape.movable]
+    _add_object(spec, fixed, scene_object, options)
+    _add_neighbours(spec, neighbours, options)
+    _set_contacts(spec)
+    add_watch(spec, "object", [NEIGHBOUR_BODY + shape.name for shape in neighbours])
     if robot.palm_frame not in {body.name for body in spec.bodies}:
         raise ConfigError("plan robot.palm_frame", robot.palm_frame, "a link of the URDF")
     try:
@@ -263,35 +273,6 @@ def make_world(
     if pads:
         pad_contacts(world)
     return world
-
-
-def world_spec(
-    robot: RobotTable,
-    obstacles: Sequence[Shape],
-    scene_object: Shape,
-    options: PhysicsOptions,
-) -> tuple[mujoco.MjSpec, ET.Element, dict[str, tuple[float, float]], Shape, list[Shape]]:
-    """The world's spec before it is compiled (:func:`make_world`).
-
-    Returns:
-        The spec, the URDF's root, its joints' ``(velocity, effort)`` limits, the object
-        (its mass and friction as ``options`` set them) and the neighbours.
-    """
-    spec, root = urdf_spec(robot.urdf, list(robot.package_dirs))
-    limits = _joint_limits(root)
-    _add_robot(spec, robot, limits, options)
-    add_pads(spec, robot.pads if options.pads else (), options)
-    if options.object_mass is not None:
-        scene_object = replace(scene_object, mass=options.object_mass)
-    if options.object_friction is not None:
-        scene_object = replace(scene_object, friction=options.object_friction)
-    fixed = [shape for shape in obstacles if not shape.movable]
-    neighbours = [shape for shape in obstacles if shape.movable]
-    _add_object(spec, fixed, scene_object, options)
-    _add_neighbours(spec, neighbours, options)
-    _set_contacts(spec)
-    add_watch(spec, "object", [NEIGHBOUR_BODY + shape.name for shape in neighbours])
-    return spec, root, limits, scene_object, neighbours
 
 
 def _add_robot(
