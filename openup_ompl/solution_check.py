@@ -117,6 +117,6 @@ def verify_path(
             f"[{low[j]:.6g}, {high[j]:.6g}]"
         )
     rows = np.arange(path.shape[0]) if rows is None else np.asarray(rows, dtype=np.intp)
-    flags = checker._batch_collides(-1, np.asfortranarray(path[rows].T), stop_at_first=False)
+    flags = checker.finest_world.batch_in_collision(np.asfortranarray(path[rows].T), False)
     if np.any(flags):
         raise VerifyFailed(f"path row {int(rows[np.flatnonzero(flags)[0]])} collides")
