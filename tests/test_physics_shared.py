@@ -149,3 +149,16 @@ def test_the_throughput_set_keeps_its_verdicts_but_the_rounding_decided_one():
             shared += rollout._shared.handover(start) is not None  # type: ignore[union-attr]
     assert changed <= ROUNDING_DECIDED
     assert shared >= 120
+
+
+def test_an_object_near_a_fixed_obstacle_shares_while_clear_of_it():
+    """Among the pillars (the back one's surface 55 mm behind the can's): moved 50 mm
+    towards it the can still shares; moved 60 mm it would stand in it and does not."""
+    import openup_ompl as oo
+
+    problem = oo.load_scene(regression.ROOT / "benchmarks" / "unseen" / "panda" / "pillars.toml")
+    plan = oo.GraspPlanningSetup(problem).solve(time_limit=5.0, planner="ikbirrt", seed=11)
+    rollout = Rollout(plan, SHARED)
+    shared = SharedApproach(rollout)
+    assert shared.handover(_start(rollout, (0.05, 0.0, 0.0))) is not None
+    assert shared.handover(_start(rollout, (0.06, 0.0, 0.0))) is None

@@ -22,8 +22,10 @@ reached it (or a neighbour), the object no neighbour
 distance at each checkpoint beyond what each geom moves until the next), and before the
 shared run's robot touched anything (its watch sensors). From the handover on the trial is
 simulated as without sharing. Not shared (the trial runs whole): a turned object (``yaw``
-!= 0), an object that rests on anything but the top face of one box or a horizontal
-plane, or near another fixed obstacle; nothing past a stretch in which MuJoCo warned.
+!= 0), an object that rests on anything but the top face of one fixed box (its footprint
+within the face) or a horizontal plane, or that would stand within :data:`MOVE` of
+another fixed obstacle; and nothing past the step at which the shared object moved more
+than :data:`MOVE`, or a stretch in which MuJoCo warned.
 """
 
 from __future__ import annotations
@@ -39,12 +41,15 @@ if TYPE_CHECKING:
     from openup_ompl.physics.monitor import Monitor
     from openup_ompl.physics.rollout import Rollout
 
-__all__ = ["BLOCK", "STRIDE", "Handover", "SharedApproach"]
+__all__ = ["BLOCK", "MOVE", "STRIDE", "Handover", "SharedApproach"]
 
 #: Steps between the checkpoints a trial can take over at.
 STRIDE = 16
 #: Steps the shared run goes further by when a trial needs more.
 BLOCK = 16 * STRIDE
+#: How far [m] any point of the resting object may move while trials share: its
+#: clearance from the other fixed obstacles is judged with this travel.
+MOVE = 1e-3
 
 
 class _Track:
@@ -111,7 +116,7 @@ class SharedApproach:
         import mujoco
 
         from openup_ompl.physics.targets import displaced_pose
-        from openup_ompl.physics.world import NEIGHBOUR, OBJECT, ROBOT
+        from openup_ompl.physics.world import FIXED_ROBOT, NEIGHBOUR, OBJECT, OBSTACLE, ROBOT
 
         world, options = rollout.world, rollout.options
         model, dt = world.model, float(world.model.opt.timestep)
@@ -156,7 +161,9 @@ class SharedApproach:
         bound = model.geom_rbound + model.geom_margin
         self.r_geoms, self.r_objects = bound[self.geoms], bound[self.objects]
         self.r_neighbours = bound[self.neighbours]
+        self.fixed = np.flatnonzero(np.isin(kinds, (OBSTACLE, FIXED_ROBOT)))
         self.object_radius = clearance.body_radius(model, world.object_body)
+        self.footprint = self.object_radius  # its reach sideways, found with the support
         self.neighbour_radius = [clearance.body_radius(model, b) for b in world.neighbour_body]
         self.centres = np.empty((steps + 1, len(self.geoms), 3))
         self.axes = np.empty((steps + 1, len(self.geoms), 9))
@@ -186,6 +193,8 @@ class SharedApproach:
     def _extend(self) -> bool:
         """Run the shared simulation up to :data:`BLOCK` steps further; False if it is at
         :attr:`limit` already."""
+        import mujoco
+
         first = self.run.count
         if self.ended or first - 1 >= self.limit:
             return False
@@ -204,9 +213,19 @@ class SharedApproach:
         if hit.any():  # sensors row t: the contacts at state t - 1
             at = first - 1 + int(np.argmax(hit))
             self.limit = min(self.limit, at - at % STRIDE)
+        q = 1 + self.world.object_qpos
+        poses = self.run.states[[0, *range(first, stop)], q : q + 7]
+        moved = clearance.body_travel(poses, self.object_radius)[1:] > MOVE
+        if moved.any():  # no longer resting where it was
+            at = first + int(np.argmax(moved))
+            self.limit = min(self.limit, at - at % STRIDE)
         if self.supported is None:
             self.support = clearance.support(self.world.model, self.run.states[stop - 1])
             self.supported = self.support is not None
+            data = self.kinematics
+            data.qpos[:] = self.run.states[0][self.qpos]
+            mujoco.mj_kinematics(self.world.model, data)
+            self.footprint = clearance.footprint(self.world.model, data, self.world.object_body)
         return stop > first
 
     def _motion(self, first: int, stop: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -244,7 +263,9 @@ class SharedApproach:
         if self.supported is None:
             self._extend()
         shift = start[:3] - self.nominal[:3]
-        if self.support is None or not self.support.holds(shift, self.object_radius):
+        if self.support is None or not self.support.holds(shift, self.footprint + MOVE):
+            return None
+        if not self._clear_of_fixed(shift):
             return None
         # Bounding spheres at every state, as far as they stay apart.
         t = 0
@@ -274,6 +295,21 @@ class SharedApproach:
                 break
             checkpoint = following
         return Handover(self, checkpoint, shift) if checkpoint > 0 else None
+
+    def _clear_of_fixed(self, shift: np.ndarray) -> bool:
+        """Whether the object, moved by ``shift`` and by up to :data:`MOVE` more, stays
+        clear of every fixed obstacle but its support (MuJoCo's distance at the start)."""
+        import mujoco
+
+        assert self.support is not None
+        world, data = self.world, self.kinematics
+        data.qpos[:] = self.run.states[0][self.qpos]
+        data.qpos[world.object_qpos : world.object_qpos + 3] += shift
+        mujoco.mj_kinematics(world.model, data)
+        others = [int(g) for g in self.fixed if g != self.support.geom]
+        pairs = [(int(o), g) for o in self.objects for g in others]
+        travel = {**{int(o): MOVE for o in self.objects}, **{g: 0.0 for g in others}}
+        return clearance.exactly_apart(world.model, data, pairs, travel)
 
     def _apart(self, first: int, stop: int, shift: np.ndarray) -> bool:
         """Whether no robot geom can touch the object (moved by ``shift``) or a neighbour,

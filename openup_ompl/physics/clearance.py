@@ -10,65 +10,46 @@ distance (``mj_geomDistance``) where the spheres meet.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 __all__ = [
-    "Support", "body_motion", "body_radius", "exactly_apart", "geom_motion", "spheres_apart",
-    "support",
+    "Support", "body_motion", "body_radius", "body_travel", "exactly_apart", "footprint",
+    "geom_motion", "spheres_apart", "support",
 ]  # fmt: skip
 
 
 @dataclass
 class Support:
-    """The object's support: the top face of one fixed box (or a horizontal plane), every
-    other fixed obstacle clear of the object.
+    """The object's support: the top face of one fixed box (or a horizontal plane).
 
     Attributes:
         box: The supporting box ``(centre, rotation, half-sizes)``; ``None`` for a plane.
-        plane: Whether a horizontal plane is the support.
-        others: The other fixed geoms ``(type, centre, rotation, half-sizes, radius)``.
+        geom: The supporting geom's index.
         start: The object's start position [m] (its body origin).
     """
 
     box: tuple[np.ndarray, np.ndarray, np.ndarray] | None
-    plane: bool
+    geom: int
     start: np.ndarray
-    others: list[tuple[int, np.ndarray, np.ndarray, np.ndarray, float]] = field(
-        default_factory=list
-    )
 
     def holds(self, shift: np.ndarray, radius: float) -> bool:
-        """Whether the object, moved by ``shift`` [m], stands on the same face with its
-        bounding sphere (``radius`` [m]) within the face's outline and clear of every
-        other fixed obstacle."""
-        import mujoco
-
-        centre = self.start + shift
-        if self.box is not None:
-            position, rotation, half = self.box
-            local = rotation.T @ (centre - position)
-            if np.any(np.abs(local[:2]) + radius > half[:2]):
-                return False
-        for kind, position, rotation, half, bound in self.others:
-            local = rotation.T @ (centre - position)
-            if kind == mujoco.mjtGeom.mjGEOM_PLANE:
-                gap = abs(float(local[2]))
-            elif kind == mujoco.mjtGeom.mjGEOM_BOX:
-                gap = float(np.linalg.norm(np.maximum(np.abs(local) - half, 0.0)))
-            else:
-                gap = float(np.linalg.norm(local)) - bound
-            if gap <= radius:
-                return False
-        return True
+        """Whether the object, moved by ``shift`` [m], stands on the same face, a circle
+        of ``radius`` [m] about it (:func:`footprint`) within the face's outline."""
+        if self.box is None:
+            return True
+        position, rotation, half = self.box
+        local = rotation.T @ (self.start + shift - position)
+        return bool(np.all(np.abs(local[:2]) + radius <= half[:2]))
 
 
 def support(model: Any, state: np.ndarray) -> Support | None:
     """The object's support at ``state`` (a full physics state of the world), or
     ``None``: it touches two things, nothing, anything but a fixed obstacle, or something
-    other than a box's horizontal face or a horizontal plane.
+    other than a box's horizontal face or a horizontal plane. (The other fixed obstacles'
+    clearance is the caller's: :func:`exactly_apart`.)
 
     Args:
         model: The world's ``mujoco.MjModel`` (its object body named ``object``).
@@ -100,13 +81,7 @@ def support(model: Any, state: np.ndarray) -> Support | None:
         box = (data.geom_xpos[under].copy(), rotation, model.geom_size[under].copy())
     elif kind != mujoco.mjtGeom.mjGEOM_PLANE:
         return None
-    others = [
-        (int(model.geom_type[g]), data.geom_xpos[g].copy(),
-         data.geom_xmat[g].reshape(3, 3).copy(), model.geom_size[g] + model.geom_margin[g],
-         float(model.geom_rbound[g] + model.geom_margin[g]))
-        for g in np.flatnonzero(model.geom_bodyid == 0) if g != under
-    ]  # fmt: skip
-    return Support(box, box is None, data.xpos[body].copy(), others)
+    return Support(box, under, data.xpos[body].copy())
 
 
 def body_radius(model: Any, body: int) -> float:
@@ -118,17 +93,37 @@ def body_radius(model: Any, body: int) -> float:
     )  # fmt: skip
 
 
-def body_motion(poses: np.ndarray, radius: float) -> float:
-    """How far [m] any point within ``radius`` of a body's origin moves from the first of
-    ``poses`` (rows of position and scalar-first quaternion) to any other."""
+def footprint(model: Any, data: Any, body: int) -> float:
+    """Radius [m] of a vertical cylinder about ``body``'s origin enclosing its geoms'
+    bounding boxes (MuJoCo's ``geom_aabb``) at ``data``'s kinematics: how far the body
+    reaches sideways."""
+    reach = 0.0
+    for g in np.flatnonzero(model.geom_bodyid == body):
+        centre, half = model.geom_aabb[g][:3], model.geom_aabb[g][3:]
+        signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])
+        corners = (centre + signs * half) @ data.geom_xmat[g].reshape(3, 3).T
+        corners += data.geom_xpos[g] - data.xpos[body]
+        reach = max(reach, float(np.linalg.norm(corners[:, :2], axis=1).max()))
+    return reach + float(model.geom_margin[model.geom_bodyid == body].max())
+
+
+def body_travel(poses: np.ndarray, radius: float) -> np.ndarray:
+    """How far [m] any point within ``radius`` of a body's origin is from where it was at
+    the first of ``poses`` (rows of position and scalar-first quaternion), per pose."""
     import mujoco
 
     rotations = np.empty((len(poses), 9))
     for i, pose in enumerate(poses):
         mujoco.mju_quat2Mat(rotations[i], pose[3:])
-    shift = np.linalg.norm(poses[:, :3] - poses[0, :3], axis=1).max()
-    turn = np.linalg.norm(rotations - rotations[0], axis=1).max()  # Frobenius >= spectral
-    return float(shift + turn * radius)
+    shift = np.linalg.norm(poses[:, :3] - poses[0, :3], axis=1)
+    turn = np.linalg.norm(rotations - rotations[0], axis=1)  # Frobenius >= spectral
+    return np.asarray(shift + turn * radius)
+
+
+def body_motion(poses: np.ndarray, radius: float) -> float:
+    """How far [m] any point within ``radius`` of a body's origin moves from the first of
+    ``poses`` (rows of position and scalar-first quaternion) to any other."""
+    return float(body_travel(poses, radius).max())
 
 
 def geom_motion(centres: np.ndarray, axes: np.ndarray, radius: np.ndarray) -> np.ndarray:
@@ -183,7 +178,8 @@ def exactly_apart(
     for g, h in pairs:
         need = travel[g] + travel[h] + model.geom_margin[g] + model.geom_margin[h] + 1e-9
         gap = np.linalg.norm(data.geom_xpos[g] - data.geom_xpos[h])
-        if gap - model.geom_rbound[g] - model.geom_rbound[h] > need:
+        bounded = model.geom_rbound[g] > 0 and model.geom_rbound[h] > 0  # a plane's is 0
+        if bounded and gap - model.geom_rbound[g] - model.geom_rbound[h] > need:
             continue
         if mujoco.mj_geomDistance(model, data, g, h, need + 0.01, None) <= need:
             return False
