@@ -41,7 +41,7 @@ def _start(rollout: Rollout, offset: tuple[float, float, float]) -> np.ndarray:
 
 
 @pytest.mark.parametrize("offset", [(0.0, 0.0, 0.0), (0.0, 0.01, 0.0), (0.02, 0.0, 0.0)])
-def test_the_handover_state_is_the_full_run_s(panda, offset):
+def test_at_the_handover_the_robot_is_the_unshared_run_s(panda, offset):
     """Stepping the whole world without sharing up to a trial's handover: no robot geom
     touched the object before it, and the merged state there has the robot's positions,
     velocities and warm start to the last bit, the object's within a micrometre."""
