@@ -410,8 +410,8 @@ def report(info: dict[str, Any], results: dict[str, Any], args: argparse.Namespa
     return "\n".join(out)
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def add_common_arguments(parser: argparse.ArgumentParser) -> None:
+    """The options this script and ``bench_native.py`` share: robots, state sets, rounds."""
     parser.add_argument(
         "--robots", nargs="+", default=list(SCENES), choices=list(SCENES), help="robots"
     )
@@ -420,12 +420,24 @@ def main() -> None:
     parser.add_argument("--chunk", type=int, default=250, help="states per sample (250)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the states")
     parser.add_argument("--json", metavar="PATH", help="also write the results as JSON")
-    parser.add_argument(
-        "--native",
-        action="store_true",
-        help="also time the package's checks with the compiled path on (native='on'; "
-        "build it first: openup-ompl build-native)",
-    )
+
+
+def run(
+    name: str,
+    parser: argparse.ArgumentParser,
+    bench: Callable[[str, argparse.Namespace], dict[str, Any]],
+    describe: Callable[[dict[str, Any], dict[str, Any], argparse.Namespace], str],
+    note: str,
+) -> None:
+    """Parse the options, bench each robot, print the report, write the JSON.
+
+    Args:
+        name: The benchmark's name (in the JSON).
+        parser: The parser, every option added.
+        bench: Runs one robot: ``bench(robot_name, args)`` -> its results.
+        describe: The report: ``describe(machine, results, args)`` -> Markdown.
+        note: What the JSON's times and ratios are.
+    """
     args = parser.parse_args()
     if args.states < 1 or args.chunk < 1 or args.rounds < 2:
         parser.error("--states and --chunk must be positive, --rounds at least 2")
@@ -434,19 +446,32 @@ def main() -> None:
     results = {}
     for robot_name in args.robots:
         started = time.perf_counter()
-        results[robot_name] = bench_robot(robot_name, args)
+        results[robot_name] = bench(robot_name, args)
         print(f"{robot_name}: {time.perf_counter() - started:.1f} s", file=sys.stderr)
-    print(report(info, results, args))
+    print(describe(info, results, args))
     _common.write_json(
         args.json,
         {
-            "benchmark": "bench_coupling",
+            "benchmark": name,
             "machine": info,
             "args": {k: v for k, v in vars(args).items() if k != "json"},
             "robots": results,
-            "note": "times in seconds per check; ratios are of medians over interleaved rounds",
+            "note": note,
         },
     )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    add_common_arguments(parser)
+    parser.add_argument(
+        "--native",
+        action="store_true",
+        help="also time the package's checks with the compiled path on (native='on'; "
+        "build it first: openup-ompl build-native)",
+    )
+    run("bench_coupling", parser, bench_robot, report,
+        "times in seconds per check; ratios are of medians over interleaved rounds")  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -34,7 +34,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -42,7 +41,6 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 from ompl import base as ob
-from ompl import util as ou
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
@@ -328,40 +326,15 @@ def report(info: dict[str, Any], results: dict[str, Any], args: argparse.Namespa
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    scenes = list(bench_coupling.SCENES)
-    parser.add_argument("--robots", nargs="+", default=scenes, choices=scenes, help="robots")
-    parser.add_argument("--states", type=int, default=2000, help="states per set (2000)")
-    parser.add_argument("--rounds", type=int, default=9, help="interleaved rounds (9)")
-    parser.add_argument("--chunk", type=int, default=250, help="states per sample (250)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the states")
+    bench_coupling.add_common_arguments(parser)
     parser.add_argument(
         "--distance",
         default="translation",
         choices=DISTANCE_KINDS,
         help="the law's distance (translation, the scenes' own)",
     )
-    parser.add_argument("--json", metavar="PATH", help="also write the results as JSON")
-    args = parser.parse_args()
-    if args.states < 1 or args.chunk < 1 or args.rounds < 2:
-        parser.error("--states and --chunk must be positive, --rounds at least 2")
-    ou.setLogLevel(ou.LOG_ERROR)
-    info = _common.machine_info()
-    results = {}
-    for robot_name in args.robots:
-        started = time.perf_counter()
-        results[robot_name] = bench_robot(robot_name, args)
-        print(f"{robot_name}: {time.perf_counter() - started:.1f} s", file=sys.stderr)
-    print(report(info, results, args))
-    _common.write_json(
-        args.json,
-        {
-            "benchmark": "bench_native",
-            "machine": info,
-            "args": {k: v for k, v in vars(args).items() if k != "json"},
-            "robots": results,
-            "note": "times in seconds per check; ratios are medians of paired ratios",
-        },
-    )
+    note = "times in seconds per check; ratios are medians of paired ratios"
+    bench_coupling.run("bench_native", parser, bench_robot, report, note)
 
 
 if __name__ == "__main__":
