@@ -2,17 +2,20 @@
 scenes beyond the fixed trial sets: the same verdicts, how many trials share, the time.
 
 For each scene and planning seed, one plan (IKBiRRT, 5 s) executed against the sweep's 21
-offsets of the object (nominal, then +-x and +-y at 0.5, 1, 1.5, 2 and 3 cm), once with
+offsets of the object (nominal, then +-x and +-y at 0.5, 1, 1.5, 2 and 3 cm; all turned
+by ``--yaw`` about the object's own z axis), once with
 the approach shared and once without, as a physics sweep does (``early_end``). A verdict
 (success and cause) that differs is then probed: the unshared trial again with its
-object's start moved by 1e-12, 1e-10 and 1e-8 m along x; if one of those turns its
-verdict, rounding decides it (``benchmarks/physics_sensitivity.py``).
+object's start moved by 1e-12, 1e-10 and 1e-8 m along x, then along y, and turned by as
+many radians; if one of those turns its verdict, rounding decides it
+(``benchmarks/physics_sensitivity.py``).
 
 Run (about 3 minutes on one core with the defaults: the ten unseen and held-out Panda
 scenes and the three shipped ones other than the Panda can, two plans each)::
 
     python benchmarks/physics_shared_check.py
     python benchmarks/physics_shared_check.py --scenes scenes/panda_can.toml --seeds 1 2 3
+    python benchmarks/physics_shared_check.py --yaw 0.4
 """
 
 from __future__ import annotations
@@ -49,14 +52,16 @@ def verdict(record: oo.ExecutionRecord) -> str:
     return record.cause or "held"
 
 
-def check(scene: Path, seed: int) -> dict[str, object]:
-    """One plan of ``scene`` at the sweep's offsets, shared and unshared."""
+def check(scene: Path, seed: int, yaw: float = 0.0) -> dict[str, object]:
+    """One plan of ``scene`` at the sweep's offsets (turned by ``yaw`` [rad]), shared
+    and unshared."""
     problem = oo.load_scene(scene)
     plan = oo.GraspPlanningSetup(problem).solve(time_limit=5.0, planner="ikbirrt", seed=seed)
     shared = Rollout(plan, PhysicsOptions(early_end=True, shared_approach=True))
     plain = Rollout(plan, PhysicsOptions(early_end=True))
     times, trials = [0.0, 0.0], []
-    for offset in regression.SWEEP:
+    for dx, dy, _ in regression.SWEEP:
+        offset = [dx, dy, yaw]
         started = time.perf_counter()
         a = shared.run(offset, frames=False)
         times[0] += time.perf_counter() - started
@@ -70,10 +75,13 @@ def check(scene: Path, seed: int) -> dict[str, object]:
         trial = {"offset": offset, "shared": verdict(a), "unshared": verdict(b),
                  "handover": handover.end if handover else None}  # fmt: skip
         if verdict(a) != verdict(b):
-            trial["probes"] = {
-                eps: verdict(plain.run((offset[0] + eps, *offset[1:]), frames=False))
-                for eps in PROBES
-            }
+            probes = {}
+            for axis, name in enumerate(("x", "y", "yaw")):
+                for eps in PROBES:
+                    moved = list(offset)
+                    moved[axis] += eps
+                    probes[f"{name} {eps:g}"] = verdict(plain.run(moved, frames=False))
+            trial["probes"] = probes
         trials.append(trial)
     return {"scene": scene.name, "seed": seed, "seconds": times, "trials": trials}
 
@@ -82,12 +90,13 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scenes", type=Path, nargs="+", default=SCENES)
     parser.add_argument("--seeds", type=int, nargs="+", default=[11, 12])
+    parser.add_argument("--yaw", type=float, default=0.0, help="every offset's turn [rad]")
     parser.add_argument("--json", type=Path, help="write the trials here")
     args = parser.parse_args()
     runs = []
     for scene in args.scenes:
         for seed in args.seeds:
-            run = check(scene, seed)
+            run = check(scene, seed, args.yaw)
             runs.append(run)
             trials = run["trials"]
             shared = sum(t["handover"] is not None for t in trials)  # type: ignore[attr-defined]
@@ -105,9 +114,10 @@ def main() -> None:
         for t in run["trials"]:  # type: ignore[attr-defined]
             if t["shared"] != t["unshared"]:
                 decided = any(v != t["unshared"] for v in t["probes"].values())
+                turned = [k for k, v in t["probes"].items() if v != t["unshared"]]
                 print(f"  {run['scene']} seed {run['seed']} at {t['offset']}: unshared "
-                      f"{t['unshared']}, shared {t['shared']}; start shifted "
-                      + ", ".join(f"{e:g} m: {v}" for e, v in t["probes"].items())
+                      f"{t['unshared']}, shared {t['shared']}; turned by the start moved "
+                      + (", ".join(turned) if turned else "by none of the probes")
                       + ("  (rounding decides it)" if decided else ""))  # fmt: skip
     print(_common.machine_line(_common.machine_info()))
     if args.json:

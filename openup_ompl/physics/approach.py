@@ -7,13 +7,14 @@ object, the neighbours and the fixed obstacles. Until a robot part comes near th
 nothing a trial varies touches the robot: MuJoCo solves each constraint island on its own,
 so the arm's and the hand's motion are every trial's to the last bit, and so are the
 neighbours'. The object meanwhile rests on its support; a trial whose object stands
-elsewhere on the same flat face takes the nominal object's rest moved by its offset. That
-move is exact physics (on a flat face the rest does not depend on where the object
-stands) but not exact arithmetic: the object differs from an unshared run's by rounding
-(below a micrometre), so a record's numbers may differ in their last digits from the
-unshared run's, and a verdict that rounding decides may differ (one of the 126 throughput
-trials, which a 1e-10 m shift of its start also turns). The nominal trial is the unshared
-run bit for bit.
+elsewhere on the same flat face, or turned about the vertical through its start (``yaw``,
+when its own z axis is vertical), takes the nominal object's rest moved so. That move is
+exact physics (on a flat face the rest does not depend on where the object stands or
+which way it faces) but not exact arithmetic: the object differs from an unshared run's
+by rounding (below a micrometre), so a record's numbers may differ from the unshared
+run's, and a verdict that rounding decides may differ (none of the 146 fixed trials does
+today; one of them turns with a 1e-10 m shift of its start). The nominal trial is the
+unshared run bit for bit.
 
 A trial uses the shared run up to its *handover*: the last checkpoint (every
 :data:`STRIDE` steps) before which no robot geom that can touch the object may have
@@ -21,11 +22,12 @@ reached it (or a neighbour), the object no neighbour
 (:mod:`~openup_ompl.physics.clearance`: bounding spheres at every step, then MuJoCo's
 distance at each checkpoint beyond what each geom moves until the next), and before the
 shared run's robot touched anything (its watch sensors). From the handover on the trial is
-simulated as without sharing. Not shared (the trial runs whole): a turned object (``yaw``
-!= 0), an object that rests on anything but the top face of one fixed box (its footprint
-within the face) or a horizontal plane, or that would stand within :data:`MOVE` of
-another fixed obstacle; and nothing past the step at which the shared object moved more
-than :data:`MOVE`, or a stretch in which MuJoCo warned.
+simulated as without sharing. Not shared (the trial runs whole): an object turned about
+anything but the vertical or standing at another height, one that rests on anything but
+the top face of one fixed box (its footprint within the face) or a horizontal plane, or
+that would stand within :data:`MOVE` of another fixed obstacle; and nothing past the step
+at which the shared object moved more than :data:`MOVE`, or a stretch in which MuJoCo
+warned.
 """
 
 from __future__ import annotations
@@ -258,25 +260,24 @@ class SharedApproach:
         Returns:
             The trial's handover, or ``None`` (the trial runs whole).
         """
-        if not np.array_equal(start[2:], self.nominal[2:]):
+        move = clearance.Move.between(self.nominal, start)
+        if move is None:
             return None
         if self.supported is None:
             self._extend()
-        shift = start[:3] - self.nominal[:3]
-        if self.support is None or not self.support.holds(shift, self.footprint + MOVE):
+        if self.support is None or not self.support.holds(move.shift, self.footprint + MOVE):
             return None
-        if not self._clear_of_fixed(shift):
+        if not self._clear_of_fixed(move):
             return None
         # Bounding spheres at every state, as far as they stay apart.
         t = 0
         while True:
             stop = self.run.count
+            objects = move.points(self.object_centres[t:stop])
             apart = self.robot_apart[t:stop] & clearance.spheres_apart(
-                self.centres[t:stop], self.r_geoms,
-                self.object_centres[t:stop] + shift, self.r_objects,
+                self.centres[t:stop], self.r_geoms, objects, self.r_objects,
             ) & clearance.spheres_apart(
-                self.object_centres[t:stop] + shift, self.r_objects,
-                self.neighbour_centres[t:stop], self.r_neighbours,
+                objects, self.r_objects, self.neighbour_centres[t:stop], self.r_neighbours,
             )  # fmt: skip
             if not apart.all():
                 t += int(np.argmin(apart))
@@ -291,33 +292,37 @@ class SharedApproach:
             following = min(checkpoint + STRIDE, len(self.rows))
             if self.run.count <= following and not self._extend():
                 break
-            if following > self.limit or not self._apart(checkpoint, following, shift):
+            if following > self.limit or not self._apart(checkpoint, following, move):
                 break
             checkpoint = following
-        return Handover(self, checkpoint, shift) if checkpoint > 0 else None
+        return Handover(self, checkpoint, move) if checkpoint > 0 else None
 
-    def _clear_of_fixed(self, shift: np.ndarray) -> bool:
-        """Whether the object, moved by ``shift`` and by up to :data:`MOVE` more, stays
-        clear of every fixed obstacle but its support (MuJoCo's distance at the start)."""
+    def _place(self, t: int, move: clearance.Move) -> None:
+        """Kinematics of the shared run's state ``t`` with its object moved by ``move``."""
         import mujoco
 
+        data, q = self.kinematics, self.world.object_qpos
+        data.qpos[:] = self.run.states[t][self.qpos]
+        data.qpos[q : q + 3] = move.points(data.qpos[q : q + 3])
+        data.qpos[q + 3 : q + 7] = move.quats(data.qpos[None, q + 3 : q + 7])[0]
+        mujoco.mj_kinematics(self.world.model, data)
+
+    def _clear_of_fixed(self, move: clearance.Move) -> bool:
+        """Whether the object, moved by ``move`` and by up to :data:`MOVE` more, stays
+        clear of every fixed obstacle but its support (MuJoCo's distance at the start)."""
         assert self.support is not None
         world, data = self.world, self.kinematics
-        data.qpos[:] = self.run.states[0][self.qpos]
-        data.qpos[world.object_qpos : world.object_qpos + 3] += shift
-        mujoco.mj_kinematics(world.model, data)
+        self._place(0, move)
         others = [int(g) for g in self.fixed if g != self.support.geom]
         pairs = [(int(o), g) for o in self.objects for g in others]
         travel = {**{int(o): MOVE for o in self.objects}, **{g: 0.0 for g in others}}
         return clearance.exactly_apart(world.model, data, pairs, travel)
 
-    def _apart(self, first: int, stop: int, shift: np.ndarray) -> bool:
-        """Whether no robot geom can touch the object (moved by ``shift``) or a neighbour,
+    def _apart(self, first: int, stop: int, move: clearance.Move) -> bool:
+        """Whether no robot geom can touch the object (moved by ``move``) or a neighbour,
         and the object no neighbour, at the states ``first .. stop - 1``."""
-        import mujoco
-
         t_robot, t_objects, t_neighbours = self._motion(first, stop)
-        robot, objects = self.centres[first], self.object_centres[first] + shift
+        robot, objects = self.centres[first], move.points(self.object_centres[first])
         neighbours = self.neighbour_centres[first]
         pairs: list[tuple[int, int]] = []
         travel: dict[int, float] = {}
@@ -337,12 +342,8 @@ class SharedApproach:
                 travel[int(ga[i])], travel[int(gb[j])] = float(ta[i]), float(tb[j])
         if not pairs:
             return True
-        world, data = self.world, self.kinematics
-        data.qpos[:] = self.run.states[first][self.qpos]
-        q = world.object_qpos
-        data.qpos[q : q + 3] += shift
-        mujoco.mj_kinematics(world.model, data)
-        return clearance.exactly_apart(world.model, data, pairs, travel)
+        self._place(first, move)
+        return clearance.exactly_apart(self.world.model, self.kinematics, pairs, travel)
 
 
 class Handover:
@@ -353,15 +354,19 @@ class Handover:
         end: The handover step.
     """
 
-    def __init__(self, shared: SharedApproach, end: int, shift: np.ndarray) -> None:
-        self.shared, self.end, self.shift, self.world = shared, end, shift, shared.world
+    def __init__(self, shared: SharedApproach, end: int, move: clearance.Move) -> None:
+        self.shared, self.end, self.move, self.world = shared, end, move, shared.world
 
     def _states(self, first: int, stop: int) -> np.ndarray:
         """The trial's full physics states after ``first .. stop - 1`` steps: the shared
-        run's, its object moved by the trial's offset."""
+        run's, its object moved by the trial's offset (position and orientation; the
+        linear velocity turned, the angular one is in the object's own frame)."""
         states = self.shared.run.states[first:stop].copy()
         q = 1 + self.world.object_qpos
-        states[:, q : q + 3] += self.shift
+        v = 1 + self.world.model.nq + self.world.object_dof
+        states[:, q : q + 3] = self.move.points(states[:, q : q + 3])
+        states[:, q + 3 : q + 7] = self.move.quats(states[:, q + 3 : q + 7])
+        states[:, v : v + 3] = self.move.vectors(states[:, v : v + 3])
         return states
 
     def replay(self, monitor: Monitor, rows: np.ndarray, log: np.ndarray | None, at: int) -> int:
@@ -395,6 +400,9 @@ class Handover:
         mujoco.mj_kinematics(model, sim)
         mujoco.mj_setState(model, sim, states[-1], spec)
         if first + n == self.end:
-            sim.qacc_warmstart[:] = shared.run.warm[self.end]
+            warm = shared.run.warm[self.end].copy()
+            d = world.object_dof
+            warm[d : d + 3] = self.move.vectors(warm[d : d + 3])
+            sim.qacc_warmstart[:] = warm
             monitor.handover = None
         return n

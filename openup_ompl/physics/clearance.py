@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 __all__ = [
-    "Support", "body_motion", "body_radius", "body_travel", "exactly_apart", "footprint",
+    "Move", "Support", "body_motion", "body_radius", "body_travel", "exactly_apart", "footprint",
     "geom_motion", "spheres_apart", "support",
 ]  # fmt: skip
 
@@ -43,6 +43,64 @@ class Support:
         position, rotation, half = self.box
         local = rotation.T @ (self.start + shift - position)
         return bool(np.all(np.abs(local[:2]) + radius <= half[:2]))
+
+
+@dataclass(frozen=True)
+class Move:
+    """The rigid move from the nominal object's start to a trial's: a turn about the
+    vertical through the nominal start, then a shift (:meth:`between`).
+
+    Attributes:
+        origin: The nominal start position [m].
+        shift: The trial's start position minus it [m].
+        turn: The turn's rotation matrix (about the world z axis), or ``None``: no turn.
+        quat: The turn as a scalar-first unit quaternion.
+    """
+
+    origin: np.ndarray
+    shift: np.ndarray
+    turn: np.ndarray | None
+    quat: np.ndarray
+
+    @staticmethod
+    def between(nominal: np.ndarray, start: np.ndarray) -> Move | None:
+        """The move from ``nominal`` to ``start`` (free-joint ``qpos``: position, then
+        scalar-first quaternion), or ``None``: another height, or a turn about anything
+        but the vertical."""
+        import mujoco
+
+        if start[2] != nominal[2]:
+            return None
+        shift = start[:3] - nominal[:3]
+        if np.array_equal(start[3:], nominal[3:]):
+            return Move(nominal[:3].copy(), shift, None, np.array([1.0, 0.0, 0.0, 0.0]))
+        inverse, quat = np.empty(4), np.empty(4)
+        mujoco.mju_negQuat(inverse, nominal[3:])
+        mujoco.mju_mulQuat(quat, start[3:], inverse)
+        quat /= np.linalg.norm(quat)
+        if abs(quat[1]) > 1e-12 or abs(quat[2]) > 1e-12:
+            return None
+        turn = np.empty(9)
+        mujoco.mju_quat2Mat(turn, quat)
+        return Move(nominal[:3].copy(), shift, turn.reshape(3, 3), quat)
+
+    def points(self, points: np.ndarray) -> np.ndarray:
+        """``points`` [m] (last axis xyz) moved."""
+        if self.turn is None:
+            return points + self.shift
+        return (points - self.origin) @ self.turn.T + self.origin + self.shift
+
+    def vectors(self, vectors: np.ndarray) -> np.ndarray:
+        """World-frame ``vectors`` (last axis xyz) turned."""
+        return vectors if self.turn is None else vectors @ self.turn.T
+
+    def quats(self, quats: np.ndarray) -> np.ndarray:
+        """Scalar-first orientations ``(n, 4)`` turned."""
+        if self.turn is None:
+            return quats
+        w, x, y, z = self.quat
+        a, b, c, d = quats.T
+        return np.stack([w * a - z * d, w * b - z * c, w * c + z * b, w * d + z * a], axis=1)
 
 
 def support(model: Any, state: np.ndarray) -> Support | None:
