@@ -111,7 +111,8 @@ class SharedApproach:
         limit: No trial takes over later than this step: the shared run's robot touches
             the object, a neighbour or a fixed obstacle in the stretch after it, or
             MuJoCo warned there.
-        support: The object's support (found after the first block), or ``None``.
+        support: The object's support (found after the first block), or ``None``: the
+            trials cannot share.
     """
 
     def __init__(self, rollout: Rollout) -> None:
@@ -135,9 +136,7 @@ class SharedApproach:
         self.controls[:, world.actuator] = self.rows
         self.world, self.qpos = world, 1 + np.arange(model.nq)
         self.nominal = displaced_pose(world.object_shape.pose, 0.0, 0.0, 0.0)
-        self.limit, self.ended = steps, False
-        self.support: clearance.Support | None = None
-        self.supported: bool | None = None  # None until the support is looked for
+        self.limit = steps
 
         # The whole world, the object at its nominal pose.
         data = mujoco.MjData(model)
@@ -164,16 +163,25 @@ class SharedApproach:
         self.r_geoms, self.r_objects = bound[self.geoms], bound[self.objects]
         self.r_neighbours = bound[self.neighbours]
         self.fixed = np.flatnonzero(np.isin(kinds, (OBSTACLE, FIXED_ROBOT)))
-        self.object_radius = clearance.body_radius(model, world.object_body)
-        self.footprint = self.object_radius  # its reach sideways, found with the support
-        self.neighbour_radius = [clearance.body_radius(model, b) for b in world.neighbour_body]
+        # The object's and the neighbours' bodies (the object first) and their radii [m].
+        self.bodies = np.array([world.object_body, *world.neighbour_body], dtype=np.intp)
+        self.r_bodies = np.array([clearance.body_radius(model, b) for b in self.bodies])
+        index = {int(b): i for i, b in enumerate(self.bodies)}
+        self.owner = np.array([index[int(b)] for b in model.geom_bodyid[self.neighbours]],
+                              dtype=np.intp)  # each neighbour geom's body, in bodies  # fmt: skip
         self.centres = np.empty((steps + 1, len(self.geoms), 3))
         self.axes = np.empty((steps + 1, len(self.geoms), 9))
         self.neighbour_centres = np.empty((steps + 1, len(self.neighbours), 3))
         self.object_centres = np.empty((steps + 1, len(self.objects), 3))
+        self.body_centres = np.empty((steps + 1, len(self.bodies), 3))
+        self.body_axes = np.empty((steps + 1, len(self.bodies), 9))
         self.robot_apart = np.empty(steps + 1, dtype=bool)  # from every neighbour
         self._motions: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         self._kinematics(0, 1)
+        # How far the object reaches sideways, at its start (the kinematics just made).
+        self.footprint = clearance.footprint(model, self.kinematics, world.object_body)
+        self._extend()
+        self.support = clearance.support(model, self.run.states[self.run.count - 1])
 
     def _kinematics(self, first: int, stop: int) -> None:
         """The geoms' placements at the shared run's states ``first .. stop - 1``."""
@@ -187,6 +195,8 @@ class SharedApproach:
             self.axes[t] = data.geom_xmat[self.geoms]
             self.neighbour_centres[t] = data.geom_xpos[self.neighbours]
             self.object_centres[t] = data.geom_xpos[self.objects]
+            self.body_centres[t] = data.xpos[self.bodies]
+            self.body_axes[t] = data.xmat[self.bodies]
         self.robot_apart[first:stop] = clearance.spheres_apart(
             self.centres[first:stop], self.r_geoms,
             self.neighbour_centres[first:stop], self.r_neighbours,
@@ -195,16 +205,14 @@ class SharedApproach:
     def _extend(self) -> bool:
         """Run the shared simulation up to :data:`BLOCK` steps further; False if it is at
         :attr:`limit` already."""
-        import mujoco
-
         first = self.run.count
-        if self.ended or first - 1 >= self.limit:
+        if first - 1 >= self.limit:
             return False
         done = first - 1
         while done < min(first - 1 + BLOCK, self.limit):
             controls = self.controls[done : done + STRIDE]
             if not self.run.extend(controls):
-                self.ended, self.limit = True, done  # nothing from the failed stretch on
+                self.limit = done  # nothing from the failed stretch on
                 break
             done += len(controls)
         stop = self.run.count
@@ -215,40 +223,30 @@ class SharedApproach:
         if hit.any():  # sensors row t: the contacts at state t - 1
             at = first - 1 + int(np.argmax(hit))
             self.limit = min(self.limit, at - at % STRIDE)
-        q = 1 + self.world.object_qpos
-        poses = self.run.states[[0, *range(first, stop)], q : q + 7]
-        moved = clearance.body_travel(poses, self.object_radius)[1:] > MOVE
+        states = [0, *range(first, stop)]  # the object's travel from its start
+        moved = (
+            clearance.travel(
+                self.body_centres[states, :1], self.body_axes[states, :1], self.r_bodies[:1]
+            )[1:, 0]
+            > MOVE
+        )
         if moved.any():  # no longer resting where it was
             at = first + int(np.argmax(moved))
             self.limit = min(self.limit, at - at % STRIDE)
-        if self.supported is None:
-            self.support = clearance.support(self.world.model, self.run.states[stop - 1])
-            self.supported = self.support is not None
-            data = self.kinematics
-            data.qpos[:] = self.run.states[0][self.qpos]
-            mujoco.mj_kinematics(self.world.model, data)
-            self.footprint = clearance.footprint(self.world.model, data, self.world.object_body)
         return stop > first
 
     def _motion(self, first: int, stop: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """How far [m] each robot geom, object geom and neighbour geom may move from
         ``first`` until ``stop`` (cached)."""
         if first not in self._motions:
-            world = self.world
-            robot = clearance.geom_motion(
+            robot = clearance.travel(
                 self.centres[first:stop], self.axes[first:stop], self.r_geoms
-            )
-            q = 1 + world.object_qpos
-            poses = self.run.states[first:stop, q : q + 7]
-            objects = np.full(len(self.objects), clearance.body_motion(poses, self.object_radius))
-            neighbours = np.zeros(len(self.neighbours))
-            owner = world.model.geom_bodyid[self.neighbours]
-            for body, address, radius in zip(
-                world.neighbour_body, world.neighbour_qpos, self.neighbour_radius, strict=True
-            ):
-                poses = self.run.states[first:stop, 1 + address : 8 + address]
-                neighbours[owner == body] = clearance.body_motion(poses, radius)
-            self._motions[first] = (robot, objects, neighbours)
+            ).max(axis=0)
+            bodies = clearance.travel(
+                self.body_centres[first:stop], self.body_axes[first:stop], self.r_bodies
+            ).max(axis=0)
+            objects = np.full(len(self.objects), bodies[0])
+            self._motions[first] = (robot, objects, bodies[self.owner])
         return self._motions[first]
 
     def handover(self, start: np.ndarray) -> Handover | None:
@@ -263,8 +261,6 @@ class SharedApproach:
         move = clearance.Move.between(self.nominal, start)
         if move is None:
             return None
-        if self.supported is None:
-            self._extend()
         if self.support is None or not self.support.holds(move.shift, self.footprint + MOVE):
             return None
         if not self._clear_of_fixed(move):
@@ -389,14 +385,14 @@ class Handover:
         n = min(len(rows), self.end - first)
         if not np.array_equal(rows[:n], shared.rows[first : first + n]):
             raise RuntimeError("the shared approach's targets differ from the trial's")
-        states = self._states(first + 1, first + n + 1)
+        states = self._states(first, first + n + 1)  # the start's, then after each step
         sensors = shared.run.sensors[first + 1 : first + n + 1]
-        monitor.watch_steps(states[:, 1 + world.object_qpos + 2], sensors)
+        monitor.watch_steps(states[1:, 1 + world.object_qpos + 2], sensors)
         if log is not None:
-            log[at : at + n] = states[:, shared.qpos]
+            log[at : at + n] = states[1:, shared.qpos]
         model, sim, spec = world.model, monitor.sim, int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
         # As after MuJoCo's step: the kinematics of the state before, the state after.
-        mujoco.mj_setState(model, sim, self._states(first + n - 1, first + n)[0], spec)
+        mujoco.mj_setState(model, sim, states[-2], spec)
         mujoco.mj_kinematics(model, sim)
         mujoco.mj_setState(model, sim, states[-1], spec)
         if first + n == self.end:

@@ -1,6 +1,6 @@
 """Geometry of the shared approach (:mod:`~openup_ompl.physics.approach`): where the object
 rests (:func:`support`), how far a body or a geom moves over a stretch of states
-(:func:`body_motion`, :func:`geom_motion`), and whether two sets of geoms are clear of
+(:func:`travel`), and whether two sets of geoms are clear of
 each other (:func:`spheres_apart`, :func:`exactly_apart`).
 
 Clearance is judged as MuJoCo judges contact: two geoms can touch only if their distance
@@ -16,8 +16,8 @@ from typing import Any
 import numpy as np
 
 __all__ = [
-    "Move", "Support", "body_motion", "body_radius", "body_travel", "exactly_apart", "footprint",
-    "geom_motion", "spheres_apart", "support",
+    "Move", "Support", "body_radius", "exactly_apart", "footprint", "spheres_apart", "support",
+    "travel",
 ]  # fmt: skip
 
 
@@ -165,39 +165,22 @@ def footprint(model: Any, data: Any, body: int) -> float:
     return reach + float(model.geom_margin[model.geom_bodyid == body].max())
 
 
-def body_travel(poses: np.ndarray, radius: float) -> np.ndarray:
-    """How far [m] any point within ``radius`` of a body's origin is from where it was at
-    the first of ``poses`` (rows of position and scalar-first quaternion), per pose."""
-    import mujoco
-
-    rotations = np.empty((len(poses), 9))
-    for i, pose in enumerate(poses):
-        mujoco.mju_quat2Mat(rotations[i], pose[3:])
-    shift = np.linalg.norm(poses[:, :3] - poses[0, :3], axis=1)
-    turn = np.linalg.norm(rotations - rotations[0], axis=1)  # Frobenius >= spectral
-    return np.asarray(shift + turn * radius)
-
-
-def body_motion(poses: np.ndarray, radius: float) -> float:
-    """How far [m] any point within ``radius`` of a body's origin moves from the first of
-    ``poses`` (rows of position and scalar-first quaternion) to any other."""
-    return float(body_travel(poses, radius).max())
-
-
-def geom_motion(centres: np.ndarray, axes: np.ndarray, radius: np.ndarray) -> np.ndarray:
-    """How far [m] any point of each geom moves from the first state to any other.
+def travel(centres: np.ndarray, axes: np.ndarray, radius: np.ndarray) -> np.ndarray:
+    """How far [m] any point within ``radius`` of each frame's origin is, at each state,
+    from where it was at the first: the origin's shift plus the rotation's change times
+    the radius.
 
     Args:
-        centres: ``(states, geoms, 3)`` the geoms' centres [m].
-        axes: ``(states, geoms, 9)`` their rotation matrices.
-        radius: ``(geoms,)`` their bounding radii [m].
+        centres: ``(states, n, 3)`` the frames' origins [m] (geoms' centres, bodies').
+        axes: ``(states, n, 9)`` their rotation matrices.
+        radius: ``(n,)`` the radii [m].
 
     Returns:
-        ``(geoms,)`` the bound [m].
+        ``(states, n)`` the bound [m].
     """
-    shift = np.linalg.norm(centres - centres[0], axis=2).max(axis=0)
-    turn = np.linalg.norm(axes - axes[0], axis=2).max(axis=0)
-    return shift + turn * radius
+    shift = np.linalg.norm(centres - centres[0], axis=2)
+    turn = np.linalg.norm(axes - axes[0], axis=2)  # Frobenius >= spectral
+    return np.asarray(shift + turn * radius)
 
 
 def spheres_apart(a: np.ndarray, ra: np.ndarray, b: np.ndarray, rb: np.ndarray) -> np.ndarray:
